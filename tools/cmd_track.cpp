@@ -1,0 +1,199 @@
+// linksight track: clouds in, nodes.csv + frames.csv + summary.json out.
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "commands.hpp"
+#include "linksight/io/atomic_file.hpp"
+#include "linksight/io/error.hpp"
+#include "linksight/io/frames.hpp"
+#include "linksight/tracker/tracker.hpp"
+
+namespace linksight::cli {
+namespace fs = std::filesystem;
+namespace {
+
+struct TrackOptions {
+  std::string input;
+  std::string intrinsics;
+  std::string mode = "paper";
+  std::string init = "pca";
+  std::string som_init = "straight-line";
+  std::string backend = "serial";
+  int threads = 0;
+  int nodes = 12;
+  int iterations = 4;
+  int poly_order = 3;
+  double pitch = 0.045;
+  double min_depth = 0.0;
+  double max_depth = std::numeric_limits<double>::infinity();
+  std::vector<double> crop;
+  std::string lost_frames = "error";
+  std::uint64_t seed = 0;
+  std::string out = "out/track";
+  bool quiet = false;
+};
+
+std::string fmt(double v, int precision) {
+  if (!std::isfinite(v)) return "nan";
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(precision) << v;
+  return s.str();
+}
+
+int run_track(const TrackOptions& o) {
+  TrackerParams p;
+  p.mode = parse_mode(o.mode);
+  p.init.method = parse_init(o.init);
+  if (o.som_init == "straight-line") p.som_init = SomInit::straight_line;
+  else if (o.som_init == "random-sample") p.som_init = SomInit::random_sample;
+  else throw std::invalid_argument("--som-init: unknown value '" + o.som_init + "'");
+  p.backend = parse_backend(o.backend);
+  p.threads = o.threads;
+  p.nodes = o.nodes;
+  p.iterations = o.iterations;
+  p.init.poly_order = o.poly_order;
+  p.init.pitch = o.pitch;
+  p.geometry.pitch = o.pitch;
+  p.seed = o.seed;
+  p.validate();
+  if (o.lost_frames != "error" && o.lost_frames != "keep") {
+    throw std::invalid_argument("--lost-frames: unknown value '" + o.lost_frames + "' (error or keep)");
+  }
+  io::DepthToCloudOptions depth;
+  depth.min_depth = o.min_depth;
+  depth.max_depth = o.max_depth;
+  if (!o.crop.empty()) {
+    if (o.crop.size() != 6) throw std::invalid_argument("--crop: need 6 values xmin,ymin,zmin,xmax,ymax,zmax");
+    depth.crop_C = Eigen::AlignedBox3d(Eigen::Vector3d(o.crop[0], o.crop[1], o.crop[2]),
+                                       Eigen::Vector3d(o.crop[3], o.crop[4], o.crop[5]));
+  }
+  depth.validate();
+
+  const std::vector<fs::path> frames = io::list_frames(o.input);
+  std::optional<fs::path> explicit_intrinsics;
+  if (!o.intrinsics.empty()) explicit_intrinsics = fs::path(o.intrinsics);
+  std::map<fs::path, io::Intrinsics> intrinsics_cache;
+
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec) throw io::InputError(o.out + ": cannot create output directory: " + ec.message());
+  io::StagedFiles staged;
+  std::ostream& nodes_csv = staged.open(fs::path(o.out) / "nodes.csv");
+  std::ostream& frames_csv = staged.open(fs::path(o.out) / "frames.csv");
+  nodes_csv << "frame,node,x_m,y_m,z_m,n_points\n";
+  frames_csv << "frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm,n_non_finite,"
+                "init_reason,lost_reason,file\n";
+
+  Tracker tracker(p);
+  std::size_t lost = 0, reinits = 0;
+  double time_sum = 0, sdf_sum = 0;
+  std::size_t sdf_n = 0;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const fs::path& path = frames[f];
+    const io::Intrinsics* k = nullptr;
+    if (path.extension() == ".png" || path.extension() == ".PNG") {
+      const fs::path kp = io::find_intrinsics(path, explicit_intrinsics);
+      auto it = intrinsics_cache.find(kp);
+      if (it == intrinsics_cache.end()) it = intrinsics_cache.emplace(kp, io::read_intrinsics(kp)).first;
+      k = &it->second;
+    }
+    const Cloud cloud = io::load_frame(path, k, depth);
+    const FrameResult r = tracker.step(cloud);
+    if (r.n_non_finite > 0) {
+      std::cerr << "linksight: " << path.string() << ": dropped " << r.n_non_finite
+                << " non-finite points\n";
+    }
+    if (r.lost) {
+      const std::string why = path.string() + ": frame lost (" + std::string(to_string(r.lost_reason)) +
+                              ", " + std::to_string(r.n_points) + " finite points, " +
+                              std::to_string(p.nodes) + " nodes)";
+      if (o.lost_frames == "error") throw io::InputError(why);
+      std::cerr << "linksight: " << why << "\n";
+      ++lost;
+    }
+    reinits += r.reinit ? 1 : 0;
+    time_sum += r.time_s;
+    if (std::isfinite(r.sdf_error)) {
+      sdf_sum += r.sdf_error;
+      ++sdf_n;
+    }
+    for (std::size_t j = 0; j < r.nodes.size(); ++j) {
+      nodes_csv << f << ',' << j << ',' << fmt(r.nodes[j].x(), 6) << ',' << fmt(r.nodes[j].y(), 6)
+                << ',' << fmt(r.nodes[j].z(), 6) << ',' << r.counts[j] << '\n';
+    }
+    frames_csv << f << ',' << r.n_points << ',' << r.iterations << ',' << (r.reinit ? 1 : 0) << ','
+               << (r.lost ? 1 : 0) << ',' << fmt(r.time_s * 1e3, 4) << ','
+               << fmt(r.sdf_error * 1e3, 4) << ',' << r.n_non_finite << ','
+               << to_string(r.init_reason) << ',' << to_string(r.lost_reason) << ','
+               << path.filename().string() << '\n';
+  }
+  const double mean_ms = frames.empty() ? 0 : time_sum * 1e3 / static_cast<double>(frames.size());
+  const double mean_sdf_mm = sdf_n ? sdf_sum * 1e3 / static_cast<double>(sdf_n) : std::nan("");
+  nlohmann::json summary = {
+      {"input", o.input},
+      {"frames", frames.size()},
+      {"lost_frames", lost},
+      {"reinit_frames", reinits},
+      {"mean_time_ms", mean_ms},
+      {"mean_sdf_err_mm", sdf_n ? nlohmann::json(mean_sdf_mm) : nlohmann::json(nullptr)},
+      {"params",
+       {{"mode", to_string(p.mode)},
+        {"init", o.init},
+        {"backend", to_string(p.backend)},
+        {"threads", p.threads},
+        {"nodes", p.nodes},
+        {"iterations", p.iterations},
+        {"poly_order", p.init.poly_order},
+        {"pitch_m", p.init.pitch},
+        {"seed", p.seed}}}};
+  staged.open(fs::path(o.out) / "summary.json") << summary.dump(2) << "\n";
+  staged.commit();
+  if (!o.quiet) {
+    std::cout << "tracked " << frames.size() << " frames (" << lost << " lost, " << reinits
+              << " re-initialized) with " << to_string(p.mode) << "/" << o.init << " on "
+              << to_string(p.backend) << ": " << fmt(mean_ms, 3) << " ms/frame, mean SDF error "
+              << fmt(mean_sdf_mm, 2) << " mm\nwrote " << o.out << "/{nodes.csv,frames.csv,summary.json}\n";
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+Runner add_track(CLI::App& app) {
+  auto o = std::make_shared<TrackOptions>();
+  app.add_option("--input", o->input, "Frames: a .ply/.png file, a directory (natural order) or a glob")
+      ->required();
+  app.add_option("--intrinsics", o->intrinsics,
+                 "intrinsics.json for depth PNGs (default: beside the frames or in their parent)");
+  app.add_option("--mode", o->mode, "paper | accelerated-som")->capture_default_str();
+  app.add_option("--init", o->init, "LSQ init of paper mode: paper | pca")->capture_default_str();
+  app.add_option("--som-init", o->som_init,
+                 "init of accelerated-som mode: straight-line | random-sample")->capture_default_str();
+  app.add_option("--backend", o->backend, "serial | openmp")->capture_default_str();
+  app.add_option("--threads", o->threads, "threads of parallel back ends (0: one per core)")
+      ->capture_default_str();
+  app.add_option("--nodes", o->nodes, "reference vectors M+1")->capture_default_str();
+  app.add_option("--iterations", o->iterations, "SOM iterations per frame")->capture_default_str();
+  app.add_option("--poly-order", o->poly_order, "LSQ polynomial order")->capture_default_str();
+  app.add_option("--pitch", o->pitch, "component pitch [m] (pca init spacing, SDF geometry)")
+      ->capture_default_str();
+  app.add_option("--min-depth", o->min_depth, "depth PNG: drop depth below this [m]")->capture_default_str();
+  app.add_option("--max-depth", o->max_depth, "depth PNG: drop depth above this [m]");
+  app.add_option("--crop", o->crop, "depth PNG: keep points in the camera-frame box xmin,ymin,zmin,xmax,ymax,zmax [m]")
+      ->delimiter(',')->expected(6);
+  app.add_option("--lost-frames", o->lost_frames,
+                 "error: a lost frame (empty, all non-finite, fewer points than nodes) aborts with exit 2; "
+                 "keep: record it (lost=1) and go on")->capture_default_str();
+  app.add_option("--seed", o->seed, "seed of random-sample init")->capture_default_str();
+  app.add_option("--out", o->out, "output directory")->capture_default_str();
+  app.add_flag("--quiet", o->quiet, "print nothing on success");
+  return [o] { return run_track(*o); };
+}
+
+}  // namespace linksight::cli

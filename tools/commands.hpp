@@ -1,0 +1,18 @@
+#pragma once
+// One function per subcommand; each registers its flags and returns the runner.
+
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace linksight::cli {
+
+/// Exit codes shared by every subcommand.
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitInternal = 1;
+inline constexpr int kExitBadInput = 2;
+
+using Runner = std::function<int()>;
+Runner add_track(CLI::App& app);
+Runner add_synth(CLI::App& app);
+
+}  // namespace linksight::cli

@@ -1,0 +1,59 @@
+#pragma once
+/// @file Initialization of the reference vectors (Section IV.A, Eqs. 9–10) and the
+/// accelerated-SOM baseline's initializations (Croom 2010 / Baader 1994).
+
+#include <cstdint>
+#include <optional>
+#include <span>
+
+#include "linksight/tracker/model.hpp"
+
+namespace linksight {
+
+/// Structure-of-arrays view of finite points in the camera frame [m].
+struct PointsView {
+  std::span<const float> x, y, z;
+  [[nodiscard]] std::size_t size() const { return x.size(); }
+};
+
+enum class InitMethod {
+  paper,  ///< Eq. 9 as printed: y = a(x), y = b(z), sampled over the marginal ranges
+  pca,    ///< polynomial in the principal-axis frame, sampled at the component pitch
+};
+
+struct InitParams {
+  InitMethod method = InitMethod::pca;
+  int poly_order = 3;               ///< polynomial order m of Eq. 9
+  std::size_t max_points = 4000;    ///< thin the cloud to at most this many points (0: all)
+  double pitch = 0.045;             ///< node spacing along the curve for `pca` [m]
+  void validate() const;            ///< throws std::invalid_argument naming the field
+};
+
+/// LSQ initialization: `n_nodes` ordered reference vectors. When `previous` is given
+/// the result is oriented so that node 0 is at the end nearer previous node 0 (keeps
+/// the topological order across re-initialization); otherwise node 0 is the end with
+/// the smaller camera x (then y). Requires points.size() >= 1.
+[[nodiscard]] Nodes lsq_init(const PointsView& points, int n_nodes, const InitParams& params,
+                             const Nodes* previous = nullptr);
+
+enum class SomInit {
+  straight_line,  ///< evenly spaced on the principal-axis segment spanned by the cloud
+  random_sample,  ///< nodes drawn from the cloud with a seeded generator, unordered
+};
+
+/// The accelerated-SOM baseline's initialization. `seed` feeds random_sample only.
+[[nodiscard]] Nodes som_init(const PointsView& points, int n_nodes, SomInit method,
+                             std::uint64_t seed);
+
+/// Least-squares polynomial coefficients c_0..c_m of v ≈ Σ c_k u^k (Eq. 10), solved
+/// in a centred, scaled abscissa for conditioning; returns coefficients in u.
+/// Order is reduced to n-1 when there are fewer points than coefficients.
+struct Polynomial {
+  Eigen::VectorXd coeffs;  ///< in the normalized abscissa t = (u - u0) / s
+  double u0 = 0.0, scale = 1.0;
+  [[nodiscard]] double operator()(double u) const;
+};
+[[nodiscard]] Polynomial fit_polynomial(std::span<const double> u, std::span<const double> v,
+                                        int order);
+
+}  // namespace linksight

@@ -1,0 +1,36 @@
+#pragma once
+/// @file Write-to-temp-then-rename, so a failed run never leaves a partial file.
+
+#include <filesystem>
+#include <functional>
+#include <iosfwd>
+#include <memory>
+#include <vector>
+
+namespace linksight::io {
+
+/// Writes `path` atomically: `write` fills a temporary file in the same directory,
+/// which is renamed over `path` only if `write` returns normally. Throws InputError
+/// naming the path when the file cannot be written.
+void write_file_atomic(const std::filesystem::path& path,
+                       const std::function<void(std::ostream&)>& write, bool binary = false);
+
+/// Several output files that appear together or not at all: each is staged to a
+/// temporary name; commit() renames them all; the destructor removes what was not
+/// committed.
+class StagedFiles {
+ public:
+  StagedFiles();
+  StagedFiles(const StagedFiles&) = delete;
+  StagedFiles& operator=(const StagedFiles&) = delete;
+  ~StagedFiles();
+  /// Opens a temporary file for `final_path`; the stream stays valid until commit().
+  std::ostream& open(const std::filesystem::path& final_path, bool binary = false);
+  void commit();
+
+ private:
+  struct Entry;
+  std::vector<std::unique_ptr<Entry>> entries_;
+};
+
+}  // namespace linksight::io

@@ -1,0 +1,40 @@
+#pragma once
+/// @file 16-bit depth PNGs and their conversion to clouds.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+#include <optional>
+#include <vector>
+
+#include "linksight/io/intrinsics.hpp"
+#include "linksight/tracker/cloud.hpp"
+
+namespace linksight::io {
+
+/// Row-major depth in sensor units (0 = no depth).
+struct DepthImage {
+  int width = 0, height = 0;
+  std::vector<std::uint16_t> data;
+};
+
+/// Reads a single-channel 16-bit PNG. Throws InputError naming the file when it is not
+/// a PNG, not 16-bit or not single-channel.
+[[nodiscard]] DepthImage read_depth_png(const std::filesystem::path& path);
+/// Writes a 16-bit grayscale PNG (stored deflate blocks), atomically.
+void write_depth_png(const std::filesystem::path& path, const DepthImage& image);
+
+struct DepthToCloudOptions {
+  double min_depth = 0.0;                                      ///< [m], inclusive
+  double max_depth = std::numeric_limits<double>::infinity();  ///< [m], inclusive
+  std::optional<Eigen::AlignedBox3d> crop_C;  ///< keep points inside this camera-frame box [m]
+  void validate() const;                      ///< throws std::invalid_argument naming the field
+};
+
+/// Back-projects every valid pixel. Throws std::invalid_argument when the image size
+/// differs from the intrinsics (the caller adds the file name).
+[[nodiscard]] Cloud depth_to_cloud(const DepthImage& image, const Intrinsics& intrinsics,
+                                   const DepthToCloudOptions& options = {});
+
+}  // namespace linksight::io

@@ -1,0 +1,136 @@
+#include "linksight/io/intrinsics.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <stdexcept>
+#include <string>
+
+#include "linksight/io/atomic_file.hpp"
+#include "linksight/io/error.hpp"
+
+namespace linksight::io {
+namespace {
+// Undistorted → distorted, the Brown–Conrady model in RealSense's coefficient order.
+Eigen::Vector2d brown_conrady(const Eigen::Vector2d& p, const std::array<double, 5>& c) {
+  const double x = p.x(), y = p.y();
+  const double r2 = x * x + y * y;
+  const double f = 1 + c[0] * r2 + c[1] * r2 * r2 + c[4] * r2 * r2 * r2;
+  return {x * f + 2 * c[2] * x * y + c[3] * (r2 + 2 * x * x),
+          y * f + 2 * c[3] * x * y + c[2] * (r2 + 2 * y * y)};
+}
+// Fixed-point inversion of brown_conrady(); converges for the mild distortion of depth cameras.
+Eigen::Vector2d invert_brown_conrady(const Eigen::Vector2d& d, const std::array<double, 5>& c) {
+  Eigen::Vector2d p = d;
+  for (int i = 0; i < 20; ++i) p += d - brown_conrady(p, c);
+  return p;
+}
+}  // namespace
+
+void Intrinsics::validate() const {
+  auto bad = [](const std::string& field, double v, const char* rule) {
+    throw std::invalid_argument("intrinsics." + field + " = " + std::to_string(v) + ": " + rule);
+  };
+  if (width <= 0) bad("width", width, "must be > 0");
+  if (height <= 0) bad("height", height, "must be > 0");
+  if (!(std::isfinite(fx) && fx > 0)) bad("fx", fx, "must be > 0");
+  if (!(std::isfinite(fy) && fy > 0)) bad("fy", fy, "must be > 0");
+  if (!std::isfinite(cx)) bad("cx", cx, "must be finite");
+  if (!std::isfinite(cy)) bad("cy", cy, "must be finite");
+  if (!(std::isfinite(depth_scale) && depth_scale > 0)) bad("depth_scale", depth_scale, "must be > 0");
+  for (double c : coeffs) {
+    if (!std::isfinite(c)) bad("coeffs", c, "must be finite");
+  }
+}
+
+Eigen::Vector3d Intrinsics::deproject(double u, double v, double z) const {
+  Eigen::Vector2d n((u - cx) / fx, (v - cy) / fy);
+  if (model == Distortion::inverse_brown_conrady) n = brown_conrady(n, coeffs);
+  if (model == Distortion::brown_conrady) n = invert_brown_conrady(n, coeffs);
+  return {n.x() * z, n.y() * z, z};
+}
+
+Eigen::Vector2d Intrinsics::project(const Eigen::Vector3d& p_C) const {
+  Eigen::Vector2d n(p_C.x() / p_C.z(), p_C.y() / p_C.z());
+  if (model == Distortion::brown_conrady) n = brown_conrady(n, coeffs);
+  if (model == Distortion::inverse_brown_conrady) n = invert_brown_conrady(n, coeffs);
+  return {n.x() * fx + cx, n.y() * fy + cy};
+}
+
+Intrinsics read_intrinsics(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  std::ifstream in(path);
+  if (!in) throw InputError(file + ": cannot open intrinsics");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(file + ": malformed JSON: " + e.what());
+  }
+  if (!j.is_object()) throw InputError(file + ": expected a JSON object");
+  static const std::set<std::string> known = {"width", "height", "fx", "fy", "cx", "cy",
+                                              "depth_scale", "model", "coeffs"};
+  for (const auto& [key, value] : j.items()) {
+    if (!known.count(key)) throw InputError(file + ": unknown key '" + key + "'");
+  }
+  auto number = [&](const char* key) -> double {
+    if (!j.contains(key)) throw InputError(file + ": missing key '" + key + "'");
+    if (!j[key].is_number()) throw InputError(file + ": key '" + key + "' must be a number");
+    return j[key].get<double>();
+  };
+  auto integer = [&](const char* key) -> int {
+    const double v = number(key);
+    if (v != std::floor(v) || v < 1 || v > 1e6) {
+      throw InputError(file + ": key '" + key + "' must be a positive integer");
+    }
+    return static_cast<int>(v);
+  };
+  Intrinsics k;
+  k.width = integer("width");
+  k.height = integer("height");
+  k.fx = number("fx");
+  k.fy = number("fy");
+  k.cx = number("cx");
+  k.cy = number("cy");
+  k.depth_scale = number("depth_scale");
+  if (j.contains("model")) {
+    if (!j["model"].is_string()) throw InputError(file + ": key 'model' must be a string");
+    const std::string m = j["model"].get<std::string>();
+    if (m == "none") k.model = Distortion::none;
+    else if (m == "brown_conrady") k.model = Distortion::brown_conrady;
+    else if (m == "inverse_brown_conrady") k.model = Distortion::inverse_brown_conrady;
+    else throw InputError(file + ": key 'model' has unknown value '" + m + "'");
+  }
+  if (j.contains("coeffs")) {
+    const auto& c = j["coeffs"];
+    if (!c.is_array() || c.size() != 5) {
+      throw InputError(file + ": key 'coeffs' must be an array of 5 numbers");
+    }
+    for (std::size_t i = 0; i < 5; ++i) {
+      if (!c[i].is_number()) throw InputError(file + ": key 'coeffs' must be an array of 5 numbers");
+      k.coeffs[i] = c[i].get<double>();
+    }
+  } else if (k.model != Distortion::none) {
+    throw InputError(file + ": key 'model' needs key 'coeffs'");
+  }
+  try {
+    k.validate();
+  } catch (const std::invalid_argument& e) {
+    throw InputError(file + ": " + e.what());
+  }
+  return k;
+}
+
+void write_intrinsics(const std::filesystem::path& path, const Intrinsics& k) {
+  nlohmann::json j = {{"width", k.width}, {"height", k.height}, {"fx", k.fx},
+                      {"fy", k.fy},       {"cx", k.cx},         {"cy", k.cy},
+                      {"depth_scale", k.depth_scale}};
+  if (k.model != Distortion::none) {
+    j["model"] = k.model == Distortion::brown_conrady ? "brown_conrady" : "inverse_brown_conrady";
+    j["coeffs"] = k.coeffs;
+  }
+  write_file_atomic(path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+}
+
+}  // namespace linksight::io

@@ -1,0 +1,129 @@
+// Minimal 16-bit grayscale PNG writer (stored deflate blocks: no compression library),
+// and the reader on top of stb_image.
+#include <array>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_ONLY_PNG
+#define STBI_NO_STDIO
+#define STBI_FAILURE_USERMSG
+#include <stb/stb_image.h>
+
+#include "linksight/io/atomic_file.hpp"
+#include "linksight/io/depth_png.hpp"
+#include "linksight/io/error.hpp"
+
+namespace linksight::io {
+namespace {
+
+std::uint32_t crc32(const unsigned char* data, std::size_t n, std::uint32_t crc = 0) {
+  static const auto table = [] {
+    std::array<std::uint32_t, 256> t{};
+    for (std::uint32_t i = 0; i < 256; ++i) {
+      std::uint32_t c = i;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      t[i] = c;
+    }
+    return t;
+  }();
+  crc = ~crc;
+  for (std::size_t i = 0; i < n; ++i) crc = table[(crc ^ data[i]) & 0xFF] ^ (crc >> 8);
+  return ~crc;
+}
+
+void put32(std::vector<unsigned char>& v, std::uint32_t x) {
+  for (int s = 24; s >= 0; s -= 8) v.push_back(static_cast<unsigned char>(x >> s));
+}
+
+void chunk(std::ostream& out, const char* type, const std::vector<unsigned char>& data) {
+  std::vector<unsigned char> buf;
+  put32(buf, static_cast<std::uint32_t>(data.size()));
+  buf.insert(buf.end(), type, type + 4);
+  buf.insert(buf.end(), data.begin(), data.end());
+  put32(buf, crc32(buf.data() + 4, buf.size() - 4));
+  out.write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
+}
+
+}  // namespace
+
+void write_depth_png(const std::filesystem::path& path, const DepthImage& image) {
+  if (image.width <= 0 || image.height <= 0 ||
+      image.data.size() != static_cast<std::size_t>(image.width) * image.height) {
+    throw InputError(path.string() + ": depth image size does not match its data");
+  }
+  std::vector<unsigned char> raw;  // filter byte 0 + big-endian samples per row
+  raw.reserve(static_cast<std::size_t>(image.height) * (1 + 2 * image.width));
+  for (int r = 0; r < image.height; ++r) {
+    raw.push_back(0);
+    for (int c = 0; c < image.width; ++c) {
+      const std::uint16_t d = image.data[static_cast<std::size_t>(r) * image.width + c];
+      raw.push_back(static_cast<unsigned char>(d >> 8));
+      raw.push_back(static_cast<unsigned char>(d & 0xFF));
+    }
+  }
+  std::vector<unsigned char> z = {0x78, 0x01};  // zlib header, no compression
+  for (std::size_t pos = 0; pos < raw.size() || pos == 0;) {
+    const std::size_t len = std::min<std::size_t>(65535, raw.size() - pos);
+    const bool last = pos + len == raw.size();
+    z.push_back(last ? 1 : 0);
+    z.push_back(static_cast<unsigned char>(len & 0xFF));
+    z.push_back(static_cast<unsigned char>(len >> 8));
+    z.push_back(static_cast<unsigned char>(~len & 0xFF));
+    z.push_back(static_cast<unsigned char>((~len >> 8) & 0xFF));
+    z.insert(z.end(), raw.begin() + static_cast<std::ptrdiff_t>(pos),
+             raw.begin() + static_cast<std::ptrdiff_t>(pos + len));
+    pos += len;
+    if (last) break;
+  }
+  std::uint32_t a = 1, b = 0;  // Adler-32
+  for (unsigned char ch : raw) {
+    a = (a + ch) % 65521;
+    b = (b + a) % 65521;
+  }
+  put32(z, (b << 16) | a);
+  std::vector<unsigned char> ihdr;
+  put32(ihdr, static_cast<std::uint32_t>(image.width));
+  put32(ihdr, static_cast<std::uint32_t>(image.height));
+  ihdr.insert(ihdr.end(), {16, 0, 0, 0, 0});  // 16-bit, grayscale, deflate, filter 0, no interlace
+  write_file_atomic(
+      path,
+      [&](std::ostream& out) {
+        const unsigned char sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+        out.write(reinterpret_cast<const char*>(sig), 8);
+        chunk(out, "IHDR", ihdr);
+        chunk(out, "IDAT", z);
+        chunk(out, "IEND", {});
+      },
+      /*binary=*/true);
+}
+
+DepthImage read_depth_png(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(file + ": cannot open");
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
+  const int len = static_cast<int>(bytes.size());
+  int w = 0, h = 0, comp = 0;
+  if (!stbi_info_from_memory(data, len, &w, &h, &comp)) {
+    throw InputError(file + ": not a readable PNG (" + stbi_failure_reason() + ")");
+  }
+  if (!stbi_is_16_bit_from_memory(data, len)) {
+    throw InputError(file + ": depth PNG must be 16-bit, this one is 8-bit");
+  }
+  if (comp != 1) {
+    throw InputError(file + ": depth PNG must have 1 channel, this one has " + std::to_string(comp));
+  }
+  stbi_us* pixels = stbi_load_16_from_memory(data, len, &w, &h, &comp, 1);
+  if (pixels == nullptr) throw InputError(file + ": corrupt PNG (" + stbi_failure_reason() + ")");
+  DepthImage img;
+  img.width = w;
+  img.height = h;
+  img.data.assign(pixels, pixels + static_cast<std::size_t>(w) * h);
+  stbi_image_free(pixels);
+  return img;
+}
+
+}  // namespace linksight::io

@@ -1,0 +1,186 @@
+#include "linksight/tracker/tracker.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "linksight/tracker/sdf.hpp"
+
+namespace linksight {
+namespace {
+[[noreturn]] void bad(const std::string& field, const std::string& value, const char* rule) {
+  throw std::invalid_argument("TrackerParams." + field + " = " + value + ": " + rule);
+}
+}  // namespace
+
+void TrackerParams::validate() const {
+  if (nodes < 2) bad("nodes", std::to_string(nodes), "must be >= 2");
+  if (iterations < 1) bad("iterations", std::to_string(iterations), "must be >= 1");
+  if (threads < 0) bad("threads", std::to_string(threads), "must be >= 0 (0: one per core)");
+  if (!(tolerance >= 0.0 && std::isfinite(tolerance))) {
+    bad("tolerance", std::to_string(tolerance), "must be a finite value >= 0");
+  }
+  init.validate();
+  geometry.validate();
+}
+
+std::string_view to_string(TrackerMode mode) {
+  return mode == TrackerMode::paper ? "paper" : "accelerated-som";
+}
+std::string_view to_string(InitReason r) {
+  switch (r) {
+    case InitReason::none: return "none";
+    case InitReason::first_frame: return "first_frame";
+    case InitReason::empty_neighbourhood: return "empty_neighbourhood";
+  }
+  return "unknown";
+}
+std::string_view to_string(LostReason r) {
+  switch (r) {
+    case LostReason::none: return "none";
+    case LostReason::empty_cloud: return "empty_cloud";
+    case LostReason::all_non_finite: return "all_non_finite";
+    case LostReason::too_few_points: return "too_few_points";
+  }
+  return "unknown";
+}
+TrackerMode parse_mode(std::string_view name) {
+  if (name == "paper") return TrackerMode::paper;
+  if (name == "accelerated-som") return TrackerMode::accelerated_som;
+  throw std::invalid_argument("unknown mode '" + std::string(name) +
+                              "' (expected paper or accelerated-som)");
+}
+InitMethod parse_init(std::string_view name) {
+  if (name == "paper") return InitMethod::paper;
+  if (name == "pca") return InitMethod::pca;
+  throw std::invalid_argument("unknown init '" + std::string(name) + "' (expected paper or pca)");
+}
+
+struct Tracker::State {
+  std::unique_ptr<Backend> backend;
+  std::vector<float> x, y, z;        // finite points of the current frame (SoA)
+  std::vector<std::int32_t> assoc;
+  std::vector<float> q;              // nodes as float xyz for the kernels
+  Accumulation acc;
+  Nodes nodes;                       // previous frame's output
+  bool has_previous = false;
+};
+
+Tracker::Tracker(const TrackerParams& params) : params_(params) {
+  params_.validate();
+  state_ = std::make_unique<State>();
+  state_->backend = make_backend(params_.backend, params_.threads);
+  state_->q.resize(3 * static_cast<std::size_t>(params_.nodes));
+}
+Tracker::~Tracker() = default;
+Tracker::Tracker(Tracker&&) noexcept = default;
+Tracker& Tracker::operator=(Tracker&&) noexcept = default;
+
+void Tracker::reset() {
+  state_->has_previous = false;
+  state_->nodes.clear();
+}
+
+std::span<const std::int32_t> Tracker::last_association() const {
+  return {state_->assoc.data(), state_->assoc.size()};
+}
+
+FrameResult Tracker::step(const Cloud& cloud) {
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  State& s = *state_;
+  FrameResult r;
+  const std::size_t n_total = cloud.size();
+  s.x.resize(n_total);
+  s.y.resize(n_total);
+  s.z.resize(n_total);
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < n_total; ++i) {
+    const float px = cloud.xyz[3 * i], py = cloud.xyz[3 * i + 1], pz = cloud.xyz[3 * i + 2];
+    if (!(std::isfinite(px) && std::isfinite(py) && std::isfinite(pz))) continue;
+    s.x[n] = px;
+    s.y[n] = py;
+    s.z[n] = pz;
+    ++n;
+  }
+  s.x.resize(n);
+  s.y.resize(n);
+  s.z.resize(n);
+  s.assoc.resize(n);
+  r.n_points = n;
+  r.n_non_finite = n_total - n;
+  const int m = params_.nodes;
+
+  if (n_total == 0) {
+    r.lost_reason = LostReason::empty_cloud;
+  } else if (n == 0) {
+    r.lost_reason = LostReason::all_non_finite;
+  } else if (n < static_cast<std::size_t>(m)) {
+    r.lost_reason = LostReason::too_few_points;
+  }
+  if (r.lost_reason != LostReason::none) {
+    // A lost frame leaves the state alone: the next frame continues from the last output.
+    r.lost = true;
+    r.nodes = s.nodes;
+    r.counts.assign(static_cast<std::size_t>(m), 0);
+    r.sdf_error = std::numeric_limits<double>::quiet_NaN();
+    s.assoc.clear();
+    r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    return r;
+  }
+
+  const PointsView view{{s.x.data(), n}, {s.y.data(), n}, {s.z.data(), n}};
+  const bool paper = params_.mode == TrackerMode::paper;
+  bool initialized_now = false;
+  if (!s.has_previous) {
+    s.nodes = paper ? lsq_init(view, m, params_.init)
+                    : som_init(view, m, params_.som_init, params_.seed);
+    r.init_reason = InitReason::first_frame;
+    initialized_now = true;
+  }
+
+  // Algorithm 1, lines 8-21. A re-initialization restarts the iteration count once, so
+  // the output is always SOM-refined; a second empty neighbourhood in the same frame
+  // leaves that node where it is (LSQ on the same cloud would give the same nodes).
+  int remaining = params_.iterations;
+  while (remaining-- > 0) {
+    for (int j = 0; j < m; ++j) {
+      for (int a = 0; a < 3; ++a) s.q[3 * j + a] = static_cast<float>(s.nodes[j][a]);
+    }
+    s.backend->associate(view, s.q, s.assoc.data(), s.acc);  // Eq. (11)
+    ++r.iterations;
+    const auto empty = std::find(s.acc.count.begin(), s.acc.count.end(), 0);
+    if (empty != s.acc.count.end() && paper && !initialized_now) {
+      const Nodes previous = s.nodes;
+      s.nodes = lsq_init(view, m, params_.init, &previous);  // Sec. IV.C
+      r.reinit = true;
+      r.init_reason = InitReason::empty_neighbourhood;
+      r.reinit_node = static_cast<int>(empty - s.acc.count.begin());
+      initialized_now = true;
+      remaining = params_.iterations;
+      continue;
+    }
+    double max_move = 0.0;
+    for (int j = 0; j < m; ++j) {
+      const auto c = s.acc.count[j];
+      if (c == 0) continue;
+      const Eigen::Vector3d mean(s.acc.sum[3 * j], s.acc.sum[3 * j + 1], s.acc.sum[3 * j + 2]);
+      const Eigen::Vector3d updated = mean / static_cast<double>(c);  // Eq. (12)
+      max_move = std::max(max_move, (updated - s.nodes[j]).norm());
+      s.nodes[j] = updated;
+    }
+    if (params_.tolerance > 0.0 && max_move <= params_.tolerance) break;
+  }
+  s.has_previous = true;
+  r.nodes = s.nodes;
+  r.counts = s.acc.count;
+  r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.sdf_error = params_.compute_sdf ? sdf_error(view, s.nodes, params_.geometry)
+                                    : std::numeric_limits<double>::quiet_NaN();
+  return r;
+}
+
+}  // namespace linksight
