@@ -105,7 +105,7 @@ int run_track(const TrackOptions& o) {
     }
     const Cloud cloud = io::load_frame(path, k, depth);
     const FrameResult r = tracker.step(cloud);
-    if (r.n_non_finite > 0) {
+    if (r.n_non_finite > 0 && !r.lost) {
       std::cerr << "linksight: " << path.string() << ": dropped " << r.n_non_finite
                 << " non-finite points\n";
     }

@@ -95,6 +95,13 @@ Cloud sample_visible_surface(const Nodes& nodes, const ComponentGeometry& g,
     }
     return false;
   };
+  // Ball surface covered by its own neck or by the previous component's neck/socket.
+  auto inside_neck = [&](const Eigen::Vector3d& p, int k) {
+    const Eigen::Vector3d& c = nodes[static_cast<std::size_t>(k)];
+    const Eigen::Vector3d axis = (nodes[static_cast<std::size_t>(k) + 1] - c).normalized();
+    const double t = std::clamp((p - c).dot(axis), 0.0, g.neck_length);
+    return (p - c - t * axis).norm() < g.neck_radius;
+  };
   Cloud cloud;
   auto emit = [&](const Eigen::Vector3d& p, double noise) {
     cloud.push_back(Eigen::Vector3d(p + noise * p.normalized()));
@@ -109,6 +116,7 @@ Cloud sample_visible_surface(const Nodes& nodes, const ComponentGeometry& g,
       const double noise = s.noise_sigma * rng.normal();
       const Eigen::Vector3d p = c + g.ball_radius * n;
       if (hidden[static_cast<std::size_t>(k)] || n.dot(p) >= 0 || occluded(p)) continue;
+      if (s.necks && (inside_neck(p, k) || (k > 0 && inside_neck(p, k - 1)))) continue;
       emit(p, noise);
     }
     if (!s.necks) continue;

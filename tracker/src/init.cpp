@@ -55,7 +55,9 @@ Axes principal_axes(const Thinned& t) {
 }
 
 // Node 0 at the end nearer the previous node 0 (keeps topology across
-// re-initialization), else at the end with the smaller camera x, then y.
+// re-initialization). Without a previous output, node 0 is the end with the smaller
+// coordinate along the camera axis in which the link extends most (left end of a
+// horizontal link, top end of a hanging one, near end of one pointing away).
 void orient(Nodes& nodes, const Nodes* previous) {
   const Eigen::Vector3d& a = nodes.front();
   const Eigen::Vector3d& b = nodes.back();
@@ -64,10 +66,10 @@ void orient(Nodes& nodes, const Nodes* previous) {
     const Eigen::Vector3d& pa = previous->front();
     const Eigen::Vector3d& pb = previous->back();
     flip = (a - pb).norm() + (b - pa).norm() < (a - pa).norm() + (b - pb).norm();
-  } else if (std::abs(b.x() - a.x()) > 1e-6) {
-    flip = b.x() < a.x();
   } else {
-    flip = b.y() < a.y();
+    Eigen::Index axis = 0;
+    (b - a).cwiseAbs().maxCoeff(&axis);
+    flip = b[axis] < a[axis];
   }
   if (flip) std::reverse(nodes.begin(), nodes.end());
 }

@@ -31,8 +31,9 @@ struct InitParams {
 
 /// LSQ initialization: `n_nodes` ordered reference vectors. When `previous` is given
 /// the result is oriented so that node 0 is at the end nearer previous node 0 (keeps
-/// the topological order across re-initialization); otherwise node 0 is the end with
-/// the smaller camera x (then y). Requires points.size() >= 1.
+/// the topological order across re-initialization); otherwise node 0 is the end with the
+/// smaller coordinate along the camera axis in which the link extends most (left end of
+/// a horizontal link, top end of a hanging one). Requires points.size() >= 1.
 [[nodiscard]] Nodes lsq_init(const PointsView& points, int n_nodes, const InitParams& params,
                              const Nodes* previous = nullptr);
 

@@ -1,0 +1,65 @@
+#pragma once
+// Shared fixtures: synthetic chains with truth, views over clouds, named tolerances.
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "linksight/sim/synthetic_chain.hpp"
+#include "linksight/tracker/backend.hpp"
+#include "linksight/tracker/init.hpp"
+
+#include <gtest/gtest.h>
+
+namespace linksight::test {
+
+/// Back ends must agree with the serial reference to this [m].
+inline constexpr double kBackendTolerance = 1e-6;
+
+/// A cloud's finite points as separate arrays, for the functions that take PointsView.
+struct Soa {
+  std::vector<float> x, y, z;
+  explicit Soa(const Cloud& c) {
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      x.push_back(c.xyz[3 * i]);
+      y.push_back(c.xyz[3 * i + 1]);
+      z.push_back(c.xyz[3 * i + 2]);
+    }
+  }
+  [[nodiscard]] PointsView view() const { return {x, y, z}; }
+};
+
+/// The standard test link: 11 components, r = 15 mm, pitch 45 mm, about 0.6 m from the
+/// camera, its bending plane tilted 0.4 rad toward the camera.
+inline Nodes test_chain(sim::ChainShape shape, double bend = 0.15,
+                        const ComponentGeometry& g = {}) {
+  Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
+  X_CB.translation() = Eigen::Vector3d(-0.22, -0.02, 0.6);
+  X_CB.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  return sim::chain_nodes(g, sim::shape_bends(shape, g.count, bend), X_CB);
+}
+
+/// The test link hanging straight down the camera y axis, base at the top.
+inline Nodes hanging_chain(double bend = 0.0, const ComponentGeometry& g = {}) {
+  Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
+  X_CB.translation() = Eigen::Vector3d(0.0, -0.22, 0.6);
+  X_CB.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return sim::chain_nodes(g, sim::shape_bends(sim::ChainShape::c_shape, g.count, bend), X_CB);
+}
+
+/// gtest case name of a back-end parameter.
+inline std::string backend_name(const ::testing::TestParamInfo<BackendKind>& p) {
+  return std::string(to_string(p.param));
+}
+
+/// A fresh, empty scratch directory for one test.
+inline std::filesystem::path scratch_dir(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / ("linksight_test_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+}  // namespace linksight::test

@@ -1,0 +1,226 @@
+// Runs the real linksight binary.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "linksight/io/depth_png.hpp"
+#include "linksight/io/ply.hpp"
+#include "test_support.hpp"
+
+namespace linksight {
+namespace {
+namespace fs = std::filesystem;
+
+struct CliRun {
+  int code = -1;
+  std::string out, err;
+};
+
+CliRun run(const std::string& args, const fs::path& dir) {
+  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string cmd = std::string(LINKSIGHT_EXE) + " " + args + " >" + out.string() + " 2>" + err.string();
+  const int status = std::system(cmd.c_str());
+  CliRun r;
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  auto slurp = [](const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  };
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  fs::path dir = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::path out = dir / "result";
+
+  // A bad input: exit code 2, exactly one line on stderr that names `names`, no output.
+  void expect_bad_input(const std::string& args, const std::string& names, const std::string& what) {
+    const CliRun r = run("track " + args + " --out " + out.string(), dir);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(what), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out / "nodes.csv"));
+    EXPECT_FALSE(fs::exists(out / "frames.csv"));
+    if (fs::exists(out)) {
+      EXPECT_TRUE(fs::is_empty(out)) << "temporary files left behind";
+    }
+  }
+
+  fs::path good_sequence(int frames) {
+    const fs::path seq = dir / "seq";
+    const CliRun r = run("synth --quiet --frames " + std::to_string(frames) + " --out " + seq.string(), dir);
+    EXPECT_EQ(r.code, 0) << r.err;
+    return seq;
+  }
+
+  fs::path write_ply(const std::string& name, const Cloud& c) {
+    const fs::path p = dir / "in" / name;
+    fs::create_directories(p.parent_path());
+    io::write_ply(p, c);
+    return p;
+  }
+};
+
+TEST_F(Cli, HelpDocumentsEveryTrackFlag) {
+  const CliRun top = run("--help", dir);
+  EXPECT_EQ(top.code, 0);
+  EXPECT_NE(top.out.find("track"), std::string::npos);
+  EXPECT_NE(top.out.find("synth"), std::string::npos);
+  const CliRun r = run("track --help", dir);
+  EXPECT_EQ(r.code, 0);
+  for (const char* flag : {"--input", "--intrinsics", "--mode", "--init", "--backend", "--threads",
+                           "--nodes", "--pitch", "--out", "--lost-frames", "--crop"}) {
+    EXPECT_NE(r.out.find(flag), std::string::npos) << flag;
+  }
+}
+
+TEST_F(Cli, TracksASynthSequenceAndWritesTheDocumentedColumns) {
+  const fs::path seq = good_sequence(6);
+  EXPECT_TRUE(fs::exists(seq / "truth.csv"));
+  const CliRun r = run("track --input " + seq.string() + " --backend openmp --threads 2 --out " + out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("tracked 6 frames"), std::string::npos) << r.out;
+  std::ifstream nodes(out / "nodes.csv"), frames(out / "frames.csv");
+  std::string header;
+  std::getline(nodes, header);
+  EXPECT_EQ(header, "frame,node,x_m,y_m,z_m,n_points");
+  std::getline(frames, header);
+  EXPECT_EQ(header.rfind("frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm", 0), 0u) << header;
+  int rows = 0;
+  for (std::string line; std::getline(nodes, line);) ++rows;
+  EXPECT_EQ(rows, 6 * 12);
+  EXPECT_TRUE(fs::exists(out / "summary.json"));
+}
+
+TEST_F(Cli, SameResultWhateverTheThreadCount) {
+  const fs::path seq = good_sequence(3);
+  auto nodes_csv = [&](const std::string& extra, const std::string& name) {
+    const CliRun r = run("track --quiet --input " + seq.string() + " " + extra + " --out " + (dir / name).string(), dir);
+    EXPECT_EQ(r.code, 0) << r.err;
+    std::ifstream in(dir / name / "nodes.csv");
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  };
+  const std::string serial = nodes_csv("--backend serial", "s");
+  EXPECT_EQ(serial, nodes_csv("--backend openmp --threads 1", "o1"));
+  EXPECT_EQ(serial, nodes_csv("--backend openmp --threads 2", "o2"));
+}
+
+TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
+  const std::string input = std::string(LINKSIGHT_TEST_DATA_DIR) + "/sr305/100.png";
+  const CliRun r = run("track --input " + input + " --crop -0.3,-0.3,0.4,0.3,0.3,1.0 --out " + out.string(), dir);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out / "nodes.csv"));
+}
+
+TEST_F(Cli, EmptyCloud) { expect_bad_input("--input " + write_ply("e.ply", {}).string(), "e.ply", "empty_cloud"); }
+
+TEST_F(Cli, AllNonFinite) {
+  Cloud c;
+  for (int i = 0; i < 30; ++i) c.push_back(NAN, 0.f, 1.f);
+  expect_bad_input("--input " + write_ply("nan.ply", c).string(), "nan.ply", "all_non_finite");
+}
+
+TEST_F(Cli, FewerPointsThanNodes) {
+  Cloud c;
+  for (int i = 0; i < 5; ++i) c.push_back(0.01f * i, 0.f, 0.6f);
+  expect_bad_input("--input " + write_ply("few.ply", c).string(), "few.ply", "too_few_points");
+}
+
+TEST_F(Cli, LostFramesCanBeKept) {
+  const fs::path seq = good_sequence(2);
+  io::write_ply(seq / "frame_0001.ply", Cloud{});
+  const CliRun r = run("track --input " + seq.string() + " --lost-frames keep --out " + out.string(), dir);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("frame_0001.ply: frame lost (empty_cloud"), std::string::npos) << r.err;
+  std::ifstream frames(out / "frames.csv");
+  std::string line;
+  std::getline(frames, line);
+  std::getline(frames, line);
+  std::getline(frames, line);
+  EXPECT_EQ(line.rfind("1,0,0,0,1,", 0), 0u) << line;
+}
+
+TEST_F(Cli, SomeNonFinitePointsAreDroppedAndCounted) {
+  Cloud c = sim::sample_visible_surface(test::test_chain(sim::ChainShape::c_shape), {}, {});
+  c.push_back(NAN, NAN, NAN);
+  c.push_back(INFINITY, 0.f, 0.5f);
+  const CliRun r = run("track --input " + write_ply("some.ply", c).string() + " --out " + out.string(), dir);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("some.ply: dropped 2 non-finite points"), std::string::npos) << r.err;
+  std::ifstream frames(out / "frames.csv");
+  std::string line;
+  std::getline(frames, line);
+  std::getline(frames, line);
+  EXPECT_NE(line.find(",2,first_frame,none,some.ply"), std::string::npos) << line;
+}
+
+TEST_F(Cli, EmptyDirectory) {
+  fs::create_directories(dir / "empty");
+  expect_bad_input("--input " + (dir / "empty").string(), "empty", "directory has no frames");
+}
+
+TEST_F(Cli, MalformedPlyMidSequenceLeavesNoOutput) {
+  const fs::path seq = good_sequence(3);
+  std::ofstream(seq / "frame_0002.ply") << "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\n"
+                                           "property float y\nproperty float z\nend_header\n1 2 3\n";
+  expect_bad_input("--input " + seq.string(), "frame_0002.ply", "truncated");
+}
+
+TEST_F(Cli, PngNot16Bit) {
+  // A valid 8-bit grayscale PNG (1x1) written byte by byte.
+  const unsigned char png8[] = {0x89, 0x50, 0x4E, 0x47, 0x0D, 0x0A, 0x1A, 0x0A, 0x00, 0x00, 0x00, 0x0D, 0x49, 0x48, 0x44,
+                                0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x00, 0x00, 0x00, 0x00, 0x3A,
+                                0x7E, 0x9B, 0x55, 0x00, 0x00, 0x00, 0x0A, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9C, 0x63, 0x60,
+                                0x00, 0x00, 0x00, 0x02, 0x00, 0x01, 0xE5, 0x27, 0xDE, 0xFC, 0x00, 0x00, 0x00, 0x00, 0x49,
+                                0x45, 0x4E, 0x44, 0xAE, 0x42, 0x60, 0x82};
+  fs::create_directories(dir / "in");
+  std::ofstream(dir / "in" / "g8.png", std::ios::binary).write(reinterpret_cast<const char*>(png8), sizeof png8);
+  io::write_intrinsics(dir / "in" / "intrinsics.json", io::Intrinsics{});
+  expect_bad_input("--input " + (dir / "in" / "g8.png").string(), "g8.png", "must be 16-bit");
+}
+
+TEST_F(Cli, PngSizeDiffersFromIntrinsics) {
+  fs::create_directories(dir / "in");
+  io::write_depth_png(dir / "in" / "small.png", io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
+  io::write_intrinsics(dir / "in" / "intrinsics.json", io::Intrinsics{});
+  expect_bad_input("--input " + (dir / "in" / "small.png").string(), "small.png", "image is 32x24 but intrinsics say 640x480");
+}
+
+TEST_F(Cli, MissingIntrinsics) {
+  fs::create_directories(dir / "in" / "deep");
+  io::write_depth_png(dir / "in" / "deep" / "0.png", io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
+  expect_bad_input("--input " + (dir / "in" / "deep" / "0.png").string(), "0.png", "needs --intrinsics");
+  expect_bad_input("--input " + (dir / "in" / "deep" / "0.png").string() + " --intrinsics " + (dir / "nope.json").string(),
+                   "nope.json", "cannot open");
+}
+
+TEST_F(Cli, MalformedIntrinsics) {
+  fs::create_directories(dir / "in");
+  io::write_depth_png(dir / "in" / "0.png", io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
+  std::ofstream(dir / "in" / "intrinsics.json") << "{\"width\": 32, ";
+  expect_bad_input("--input " + (dir / "in" / "0.png").string(), "intrinsics.json", "malformed JSON");
+}
+
+TEST_F(Cli, UnknownFlagAndBadValues) {
+  const fs::path seq = good_sequence(1);
+  expect_bad_input("--input " + seq.string() + " --bogus 3", "--bogus", "");
+  expect_bad_input("--input " + seq.string() + " --backend cuda", "'cuda'", "expected serial or openmp");
+  expect_bad_input("--input " + seq.string() + " --nodes 1", "TrackerParams.nodes = 1", "must be >= 2");
+  expect_bad_input("--input " + seq.string() + " --nodes abc", "--nodes", "");
+  expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'", "paper or accelerated-som");
+  const CliRun r = run("frobnicate", dir);
+  EXPECT_EQ(r.code, 2);
+}
+
+}  // namespace
+}  // namespace linksight
