@@ -1,0 +1,80 @@
+// Tracker throughput: paper mode, 12 nodes, 4 iterations, ms per frame over N points,
+// for every back end. `--smoke` registers one tiny size only (ctest runs it untimed).
+//   linksight_bench --benchmark_filter=openmp     # one back end
+#include <benchmark/benchmark.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "linksight/sim/synthetic_chain.hpp"
+#include "linksight/tracker/tracker.hpp"
+
+namespace {
+using namespace linksight;
+
+// Exactly n points spread over the whole S-shaped test link with 1 mm noise (an even
+// stride through a denser sample), so every size measures the same geometry.
+Cloud make_cloud(std::size_t n) {
+  Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
+  X_CB.translation() = Eigen::Vector3d(-0.22, -0.02, 0.6);
+  const ComponentGeometry g;
+  const Nodes truth = sim::chain_nodes(g, sim::shape_bends(sim::ChainShape::s_shape, g.count, 0.1), X_CB);
+  sim::SurfaceSampling s;
+  s.samples_per_ball = static_cast<int>(n / 3 + 100);
+  s.samples_per_neck = static_cast<int>(n / 20 + 20);
+  s.noise_sigma = 0.001;
+  const Cloud raw = sim::sample_visible_surface(truth, g, s);
+  Cloud out;
+  out.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) out.push_back(raw.point(i * raw.size() / n));
+  return out;
+}
+
+void BM_TrackerStep(benchmark::State& state, BackendKind backend) {
+  const Cloud cloud = make_cloud(static_cast<std::size_t>(state.range(0)));
+  TrackerParams p;
+  p.backend = backend;
+  p.nodes = 12;
+  p.iterations = 4;
+  p.compute_sdf = false;  // the metric is evaluation, not tracking
+  Tracker tracker(p);
+  (void)tracker.step(cloud);  // initialization is not the steady state
+  std::int64_t reinits = 0;
+  for (auto _ : state) {
+    FrameResult r = tracker.step(cloud);
+    reinits += r.reinit;
+    benchmark::DoNotOptimize(r.nodes.data());
+  }
+  state.counters["points"] = static_cast<double>(cloud.size());
+  state.counters["reinit"] = static_cast<double>(reinits);  // 0 in the steady state
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(cloud.size()));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool smoke = false;
+  std::vector<char*> args;
+  for (int i = 0; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--smoke") == 0) {
+      smoke = true;
+    } else {
+      args.push_back(argv[i]);
+    }
+  }
+  const std::vector<std::int64_t> sizes =
+      smoke ? std::vector<std::int64_t>{300} : std::vector<std::int64_t>{5000, 20000, 100000, 300000};
+  for (BackendKind b : {BackendKind::serial, BackendKind::openmp}) {
+    auto* bm = benchmark::RegisterBenchmark(("tracker_step/" + std::string(to_string(b))).c_str(),
+                                            BM_TrackerStep, b);
+    for (auto n : sizes) bm->Arg(n);
+    bm->Unit(benchmark::kMillisecond)->UseRealTime();
+  }
+  int n = static_cast<int>(args.size());
+  benchmark::Initialize(&n, args.data());
+  if (benchmark::ReportUnrecognizedArguments(n, args.data())) return 2;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
