@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Quick-start command 2: set up, build, and run every test; then build the unit tests
+# again with AddressSanitizer + UndefinedBehaviorSanitizer and run them. Any failure or
+# sanitizer report makes the script fail.
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+jobs=$(nproc)
+
+bash "$root/tools/setup.sh"
+ctest --test-dir "${LINKSIGHT_BUILD_DIR:-$root/build}" -j "$jobs" --output-on-failure
+
+echo "test: sanitizer build (unit tests, -fsanitize=address,undefined)"
+LINKSIGHT_BUILD_DIR="$root/build-asan" bash "$root/tools/setup.sh" \
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINKSIGHT_BUILD_BENCH=OFF \
+  "-DCMAKE_CXX_FLAGS=-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all"
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1 \
+UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir "$root/build-asan" -L unit -j "$jobs" --output-on-failure
