@@ -218,6 +218,35 @@ TEST_P(TrackerBackends, AcceleratedSomNeverReinitializes) {
   }
 }
 
+// The baseline's weakness the paper names: "the result depends heavily on the initial
+// value". Random-sample init has no order, and nothing restores it (measured on the demo
+// motion, 90 frames: 10 of 11 nodes out of order in every frame, 123-162 mm mean error
+// depending on the seed). Straight-line init is as good as LSQ on this benign motion
+// (8.2 mm); the paper's "accumulation for moving link" is left to the fast-motion scenes.
+TEST_P(TrackerBackends, AcceleratedSomRandomInitNeverFindsTheOrder) {
+  const ComponentGeometry g;
+  std::vector<Nodes> last;
+  for (std::uint64_t seed : {1u, 2u}) {
+    TrackerParams p = params(12);
+    p.mode = TrackerMode::accelerated_som;
+    p.som_init = SomInit::random_sample;
+    p.seed = seed;
+    Tracker tracker(p);
+    FrameResult r;
+    for (int f = 0; f < 20; ++f) {
+      sim::SurfaceSampling s;
+      s.noise_sigma = 0.001;
+      s.seed = 100 + f;
+      r = tracker.step(sim::sample_visible_surface(sim::demo_nodes(g, f, 30), g, s));
+    }
+    const Errors e = measure(r.nodes, sim::demo_nodes(g, 19, 30));
+    EXPECT_GE(e.order_errors, 5) << "seed " << seed;
+    EXPECT_GT(e.mean, 0.050) << "seed " << seed;
+    last.push_back(r.nodes);
+  }
+  EXPECT_NE(last[0], last[1]);  // the outcome depends on the draw
+}
+
 TEST_P(TrackerBackends, LostFramesReportWhyAndKeepTheState) {
   const Nodes truth = test::test_chain(ChainShape::straight);
   Tracker tracker(params());
