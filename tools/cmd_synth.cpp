@@ -11,6 +11,7 @@
 #include "linksight/io/error.hpp"
 #include "linksight/io/ply.hpp"
 #include "linksight/sim/synthetic_chain.hpp"
+#include "linksight/tracker/seed.hpp"
 
 namespace linksight::cli {
 namespace fs = std::filesystem;
@@ -25,14 +26,6 @@ struct SynthOptions {
   std::uint64_t seed = 1;
   bool quiet = false;
 };
-
-// Sub-seed by name (the frame index), never by call order.
-std::uint64_t frame_seed(std::uint64_t seed, int frame) {
-  std::uint64_t z = seed ^ (0x9E3779B97F4A7C15ull * (static_cast<std::uint64_t>(frame) + 1));
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
 
 int run_synth(const SynthOptions& o) {
   if (o.frames < 1) throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 1");
@@ -50,7 +43,7 @@ int run_synth(const SynthOptions& o) {
     sim::SurfaceSampling s;
     s.noise_sigma = o.noise;
     s.samples_per_ball = o.samples_per_ball;
-    s.seed = frame_seed(o.seed, f);
+    s.seed = derive_seed(o.seed, static_cast<std::uint64_t>(f));  // by frame, not call order
     const Cloud cloud = sim::sample_visible_surface(nodes, g, s);
     std::ostringstream name;
     name << "frame_" << std::setw(4) << std::setfill('0') << f << ".ply";

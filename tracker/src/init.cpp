@@ -1,5 +1,7 @@
 #include "linksight/tracker/init.hpp"
 
+#include "linksight/tracker/seed.hpp"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -162,14 +164,6 @@ Nodes init_pca(const Thinned& t, int n_nodes, int order, double pitch) {
     nodes[static_cast<std::size_t>(k)] = at(length / 2 + (k - (n_nodes - 1) / 2.0) * pitch);
   }
   return nodes;
-}
-
-// splitmix64: a portable, fully specified generator (std distributions are not).
-std::uint64_t splitmix64(std::uint64_t& state) {
-  std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
 }
 
 }  // namespace

@@ -1,0 +1,19 @@
+#include <gtest/gtest.h>
+
+#include "linksight/tracker/seed.hpp"
+
+namespace linksight {
+namespace {
+
+TEST(Seed, DerivedByNameOrIndexNotByOrder) {
+  static_assert(derive_seed(1, std::uint64_t{0}) != derive_seed(1, std::uint64_t{1}));
+  EXPECT_EQ(derive_seed(7, "noise"), derive_seed(7, "noise"));
+  EXPECT_NE(derive_seed(7, "noise"), derive_seed(7, "occluder"));
+  EXPECT_NE(derive_seed(7, std::uint64_t{3}), derive_seed(8, std::uint64_t{3}));
+  std::uint64_t a = 5, b = 5;
+  EXPECT_EQ(splitmix64(a), splitmix64(b));
+  EXPECT_NE(splitmix64(a), splitmix64(a));
+}
+
+}  // namespace
+}  // namespace linksight
