@@ -19,7 +19,8 @@ Cloud make_cloud(std::size_t n) {
   Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
   X_CB.translation() = Eigen::Vector3d(-0.22, -0.02, 0.6);
   const ComponentGeometry g;
-  const Nodes truth = sim::chain_nodes(g, sim::shape_bends(sim::ChainShape::s_shape, g.count, 0.1), X_CB);
+  const Nodes truth =
+      sim::chain_nodes(g, sim::shape_bends(sim::ChainShape::s_shape, g.count, 0.1), X_CB);
   sim::SurfaceSampling s;
   s.samples_per_ball = static_cast<int>(n / 3 + 100);
   s.samples_per_neck = static_cast<int>(n / 20 + 20);
@@ -64,7 +65,8 @@ int main(int argc, char** argv) {
     }
   }
   const std::vector<std::int64_t> sizes =
-      smoke ? std::vector<std::int64_t>{300} : std::vector<std::int64_t>{5000, 20000, 100000, 300000};
+      smoke ? std::vector<std::int64_t>{300}
+            : std::vector<std::int64_t>{5000, 20000, 100000, 300000};
   for (BackendKind b : {BackendKind::serial, BackendKind::openmp}) {
     auto* bm = benchmark::RegisterBenchmark(("tracker_step/" + std::string(to_string(b))).c_str(),
                                             BM_TrackerStep, b);

@@ -28,7 +28,8 @@ struct SynthOptions {
 };
 
 int run_synth(const SynthOptions& o) {
-  if (o.frames < 1) throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 1");
+  if (o.frames < 1)
+    throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 1");
   if (!(o.fps > 0)) throw std::invalid_argument("--fps: must be > 0");
   const ComponentGeometry g;
   std::error_code ec;
@@ -49,10 +50,12 @@ int run_synth(const SynthOptions& o) {
     name << "frame_" << std::setw(4) << std::setfill('0') << f << ".ply";
     io::write_ply(fs::path(o.out) / name.str(), cloud);
     for (std::size_t j = 0; j < nodes.size(); ++j) {
-      truth << f << ',' << j << ',' << nodes[j].x() << ',' << nodes[j].y() << ',' << nodes[j].z() << '\n';
+      truth << f << ',' << j << ',' << nodes[j].x() << ',' << nodes[j].y() << ',' << nodes[j].z()
+            << '\n';
     }
   }
-  io::write_file_atomic(fs::path(o.out) / "truth.csv", [&](std::ostream& out) { out << truth.str(); });
+  io::write_file_atomic(fs::path(o.out) / "truth.csv",
+                        [&](std::ostream& out) { out << truth.str(); });
   if (!o.quiet) {
     std::cout << "wrote " << o.frames << " frames and truth.csv to " << o.out << "\n";
   }

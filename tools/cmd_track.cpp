@@ -50,9 +50,12 @@ int run_track(const TrackOptions& o) {
   TrackerParams p;
   p.mode = parse_mode(o.mode);
   p.init.method = parse_init(o.init);
-  if (o.som_init == "straight-line") p.som_init = SomInit::straight_line;
-  else if (o.som_init == "random-sample") p.som_init = SomInit::random_sample;
-  else throw std::invalid_argument("--som-init: unknown value '" + o.som_init + "'");
+  if (o.som_init == "straight-line")
+    p.som_init = SomInit::straight_line;
+  else if (o.som_init == "random-sample")
+    p.som_init = SomInit::random_sample;
+  else
+    throw std::invalid_argument("--som-init: unknown value '" + o.som_init + "'");
   p.backend = parse_backend(o.backend);
   p.threads = o.threads;
   p.nodes = o.nodes;
@@ -63,13 +66,15 @@ int run_track(const TrackOptions& o) {
   p.seed = o.seed;
   p.validate();
   if (o.lost_frames != "error" && o.lost_frames != "keep") {
-    throw std::invalid_argument("--lost-frames: unknown value '" + o.lost_frames + "' (error or keep)");
+    throw std::invalid_argument("--lost-frames: unknown value '" + o.lost_frames +
+                                "' (error or keep)");
   }
   io::DepthToCloudOptions depth;
   depth.min_depth = o.min_depth;
   depth.max_depth = o.max_depth;
   if (!o.crop.empty()) {
-    if (o.crop.size() != 6) throw std::invalid_argument("--crop: need 6 values xmin,ymin,zmin,xmax,ymax,zmax");
+    if (o.crop.size() != 6)
+      throw std::invalid_argument("--crop: need 6 values xmin,ymin,zmin,xmax,ymax,zmax");
     depth.crop_C = Eigen::AlignedBox3d(Eigen::Vector3d(o.crop[0], o.crop[1], o.crop[2]),
                                        Eigen::Vector3d(o.crop[3], o.crop[4], o.crop[5]));
   }
@@ -100,7 +105,8 @@ int run_track(const TrackOptions& o) {
     if (path.extension() == ".png" || path.extension() == ".PNG") {
       const fs::path kp = io::find_intrinsics(path, explicit_intrinsics);
       auto it = intrinsics_cache.find(kp);
-      if (it == intrinsics_cache.end()) it = intrinsics_cache.emplace(kp, io::read_intrinsics(kp)).first;
+      if (it == intrinsics_cache.end())
+        it = intrinsics_cache.emplace(kp, io::read_intrinsics(kp)).first;
       k = &it->second;
     }
     const Cloud cloud = io::load_frame(path, k, depth);
@@ -110,9 +116,9 @@ int run_track(const TrackOptions& o) {
                 << " non-finite points\n";
     }
     if (r.lost) {
-      const std::string why = path.string() + ": frame lost (" + std::string(to_string(r.lost_reason)) +
-                              ", " + std::to_string(r.n_points) + " finite points, " +
-                              std::to_string(p.nodes) + " nodes)";
+      const std::string why =
+          path.string() + ": frame lost (" + std::string(to_string(r.lost_reason)) + ", " +
+          std::to_string(r.n_points) + " finite points, " + std::to_string(p.nodes) + " nodes)";
       if (o.lost_frames == "error") throw io::InputError(why);
       std::cerr << "linksight: " << why << "\n";
       ++lost;
@@ -158,7 +164,8 @@ int run_track(const TrackOptions& o) {
     std::cout << "tracked " << frames.size() << " frames (" << lost << " lost, " << reinits
               << " re-initialized) with " << to_string(p.mode) << "/" << o.init << " on "
               << to_string(p.backend) << ": " << fmt(mean_ms, 3) << " ms/frame, mean SDF error "
-              << fmt(mean_sdf_mm, 2) << " mm\nwrote " << o.out << "/{nodes.csv,frames.csv,summary.json}\n";
+              << fmt(mean_sdf_mm, 2) << " mm\nwrote " << o.out
+              << "/{nodes.csv,frames.csv,summary.json}\n";
   }
   return kExitOk;
 }
@@ -167,14 +174,16 @@ int run_track(const TrackOptions& o) {
 
 Runner add_track(CLI::App& app) {
   auto o = std::make_shared<TrackOptions>();
-  app.add_option("--input", o->input, "Frames: a .ply/.png file, a directory (natural order) or a glob")
+  app.add_option("--input", o->input,
+                 "Frames: a .ply/.png file, a directory (natural order) or a glob")
       ->required();
   app.add_option("--intrinsics", o->intrinsics,
                  "intrinsics.json for depth PNGs (default: beside the frames or in their parent)");
   app.add_option("--mode", o->mode, "paper | accelerated-som")->capture_default_str();
   app.add_option("--init", o->init, "LSQ init of paper mode: paper | pca")->capture_default_str();
   app.add_option("--som-init", o->som_init,
-                 "init of accelerated-som mode: straight-line | random-sample")->capture_default_str();
+                 "init of accelerated-som mode: straight-line | random-sample")
+      ->capture_default_str();
   app.add_option("--backend", o->backend, "serial | openmp")->capture_default_str();
   app.add_option("--threads", o->threads, "threads of parallel back ends (0: one per core)")
       ->capture_default_str();
@@ -183,13 +192,18 @@ Runner add_track(CLI::App& app) {
   app.add_option("--poly-order", o->poly_order, "LSQ polynomial order")->capture_default_str();
   app.add_option("--pitch", o->pitch, "component pitch [m] (pca init spacing, SDF geometry)")
       ->capture_default_str();
-  app.add_option("--min-depth", o->min_depth, "depth PNG: drop depth below this [m]")->capture_default_str();
+  app.add_option("--min-depth", o->min_depth, "depth PNG: drop depth below this [m]")
+      ->capture_default_str();
   app.add_option("--max-depth", o->max_depth, "depth PNG: drop depth above this [m]");
-  app.add_option("--crop", o->crop, "depth PNG: keep points in the camera-frame box xmin,ymin,zmin,xmax,ymax,zmax [m]")
-      ->delimiter(',')->expected(6);
-  app.add_option("--lost-frames", o->lost_frames,
-                 "error: a lost frame (empty, all non-finite, fewer points than nodes) aborts with exit 2; "
-                 "keep: record it (lost=1) and go on")->capture_default_str();
+  app.add_option("--crop", o->crop,
+                 "depth PNG: keep points in the camera-frame box xmin,ymin,zmin,xmax,ymax,zmax [m]")
+      ->delimiter(',')
+      ->expected(6);
+  app.add_option(
+         "--lost-frames", o->lost_frames,
+         "error: a lost frame (empty, all non-finite, fewer points than nodes) aborts with exit 2; "
+         "keep: record it (lost=1) and go on")
+      ->capture_default_str();
   app.add_option("--seed", o->seed, "seed of random-sample init")->capture_default_str();
   app.add_option("--out", o->out, "output directory")->capture_default_str();
   app.add_flag("--quiet", o->quiet, "print nothing on success");

@@ -7,8 +7,9 @@
 
 int main(int argc, char** argv) {
   using namespace linksight::cli;
-  CLI::App app{"linksight: shape tracking of a deformable link (SOM, Li et al.) with a "
-               "synthetic test harness.\nExit codes: 0 ok, 2 bad input or usage, 1 internal error."};
+  CLI::App app{
+      "linksight: shape tracking of a deformable link (SOM, Li et al.) with a "
+      "synthetic test harness.\nExit codes: 0 ok, 2 bad input or usage, 1 internal error."};
   app.require_subcommand(1);
   std::map<const CLI::App*, Runner> runners;
   {
@@ -27,7 +28,8 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::string what = e.what();
-    for (char& c : what) if (c == '\n') c = ' ';
+    for (char& c : what)
+      if (c == '\n') c = ' ';
     std::cerr << "linksight: " << what << " (see linksight --help)\n";
     return kExitBadInput;
   }

@@ -41,8 +41,10 @@ bool blocks(const Eigen::Vector3d& p, const Eigen::Vector3d& c, double r) {
 }  // namespace
 
 void SurfaceSampling::validate() const {
-  if (samples_per_ball < 0) throw std::invalid_argument("SurfaceSampling.samples_per_ball must be >= 0");
-  if (samples_per_neck < 0) throw std::invalid_argument("SurfaceSampling.samples_per_neck must be >= 0");
+  if (samples_per_ball < 0)
+    throw std::invalid_argument("SurfaceSampling.samples_per_ball must be >= 0");
+  if (samples_per_neck < 0)
+    throw std::invalid_argument("SurfaceSampling.samples_per_neck must be >= 0");
   if (!(noise_sigma >= 0 && std::isfinite(noise_sigma))) {
     throw std::invalid_argument("SurfaceSampling.noise_sigma = " + std::to_string(noise_sigma) +
                                 ": must be >= 0");
@@ -91,7 +93,9 @@ Cloud sample_visible_surface(const Nodes& nodes, const ComponentGeometry& g,
   }
   auto occluded = [&](const Eigen::Vector3d& p) {
     for (int k = 0; k < g.count; ++k) {
-      if (!hidden[static_cast<std::size_t>(k)] && blocks(p, nodes[static_cast<std::size_t>(k)], g.ball_radius)) return true;
+      if (!hidden[static_cast<std::size_t>(k)] &&
+          blocks(p, nodes[static_cast<std::size_t>(k)], g.ball_radius))
+        return true;
     }
     return false;
   };
@@ -128,8 +132,10 @@ Cloud sample_visible_surface(const Nodes& nodes, const ComponentGeometry& g,
       const Eigen::Vector3d n = std::cos(phi) * e1 + std::sin(phi) * e2;
       const double noise = s.noise_sigma * rng.normal();
       const Eigen::Vector3d p = c + t * axis + g.neck_radius * n;
-      if (hidden[static_cast<std::size_t>(k)] || n.dot(p) >= 0 || (p - c).norm() < g.ball_radius) continue;
-      if (k + 1 < g.count && (p - nodes[static_cast<std::size_t>(k) + 1]).norm() < g.ball_radius) continue;
+      if (hidden[static_cast<std::size_t>(k)] || n.dot(p) >= 0 || (p - c).norm() < g.ball_radius)
+        continue;
+      if (k + 1 < g.count && (p - nodes[static_cast<std::size_t>(k) + 1]).norm() < g.ball_radius)
+        continue;
       if (occluded(p)) continue;
       emit(p, noise);
     }
@@ -147,8 +153,8 @@ Nodes demo_nodes(const ComponentGeometry& g, int frame, double fps) {
     bends[k] = c + (2 * k + 1 < bends.size() ? s : -s);
   }
   Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
-  X_CB.translation() = Eigen::Vector3d(-0.24 + 0.02 * std::sin(0.7 * w * t),
-                                       0.03 * std::sin(0.3 * w * t), 0.6);
+  X_CB.translation() =
+      Eigen::Vector3d(-0.24 + 0.02 * std::sin(0.7 * w * t), 0.03 * std::sin(0.3 * w * t), 0.6);
   // Tilt the bending plane toward the camera a little so the link is seen obliquely.
   X_CB.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()).toRotationMatrix();
   return chain_nodes(g, bends, X_CB);

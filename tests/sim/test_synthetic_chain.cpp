@@ -8,11 +8,14 @@ namespace {
 
 TEST(ChainNodes, BallsAtPitchAndBendsAsAsked) {
   const ComponentGeometry g;
-  const Nodes n = chain_nodes(g, shape_bends(ChainShape::c_shape, g.count, 0.1), Eigen::Isometry3d::Identity());
+  const Nodes n =
+      chain_nodes(g, shape_bends(ChainShape::c_shape, g.count, 0.1), Eigen::Isometry3d::Identity());
   ASSERT_EQ(n.size(), 12u);
-  for (std::size_t j = 0; j + 1 < n.size(); ++j) EXPECT_NEAR((n[j + 1] - n[j]).norm(), g.pitch, 1e-12);
+  for (std::size_t j = 0; j + 1 < n.size(); ++j)
+    EXPECT_NEAR((n[j + 1] - n[j]).norm(), g.pitch, 1e-12);
   for (std::size_t j = 1; j + 1 < n.size(); ++j) {
-    const double angle = std::acos((n[j] - n[j - 1]).normalized().dot((n[j + 1] - n[j]).normalized()));
+    const double angle =
+        std::acos((n[j] - n[j - 1]).normalized().dot((n[j + 1] - n[j]).normalized()));
     EXPECT_NEAR(angle, 0.1, 1e-9);
   }
   EXPECT_THROW((void)chain_nodes(g, {0.1}, Eigen::Isometry3d::Identity()), std::invalid_argument);

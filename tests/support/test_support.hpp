@@ -56,7 +56,8 @@ inline std::string backend_name(const ::testing::TestParamInfo<BackendKind>& p) 
 
 /// A fresh, empty scratch directory for one test.
 inline std::filesystem::path scratch_dir(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / ("linksight_test_" + name + "_" + std::to_string(::getpid()));
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("linksight_test_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

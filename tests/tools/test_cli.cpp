@@ -20,7 +20,8 @@ struct CliRun {
 
 CliRun run(const std::string& args, const fs::path& dir) {
   const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string cmd = std::string(LINKSIGHT_EXE) + " " + args + " >" + out.string() + " 2>" + err.string();
+  const std::string cmd =
+      std::string(LINKSIGHT_EXE) + " " + args + " >" + out.string() + " 2>" + err.string();
   const int status = std::system(cmd.c_str());
   CliRun r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -41,7 +42,8 @@ class Cli : public ::testing::Test {
   fs::path out = dir / "result";
 
   // A bad input: exit code 2, exactly one line on stderr that names `names`, no output.
-  void expect_bad_input(const std::string& args, const std::string& names, const std::string& what) {
+  void expect_bad_input(const std::string& args, const std::string& names,
+                        const std::string& what) {
     const CliRun r = run("track " + args + " --out " + out.string(), dir);
     EXPECT_EQ(r.code, 2) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
@@ -56,7 +58,8 @@ class Cli : public ::testing::Test {
 
   fs::path good_sequence(int frames) {
     const fs::path seq = dir / "seq";
-    const CliRun r = run("synth --quiet --frames " + std::to_string(frames) + " --out " + seq.string(), dir);
+    const CliRun r =
+        run("synth --quiet --frames " + std::to_string(frames) + " --out " + seq.string(), dir);
     EXPECT_EQ(r.code, 0) << r.err;
     return seq;
   }
@@ -85,7 +88,8 @@ TEST_F(Cli, HelpDocumentsEveryTrackFlag) {
 TEST_F(Cli, TracksASynthSequenceAndWritesTheDocumentedColumns) {
   const fs::path seq = good_sequence(6);
   EXPECT_TRUE(fs::exists(seq / "truth.csv"));
-  const CliRun r = run("track --input " + seq.string() + " --backend openmp --threads 2 --out " + out.string(), dir);
+  const CliRun r = run(
+      "track --input " + seq.string() + " --backend openmp --threads 2 --out " + out.string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("tracked 6 frames"), std::string::npos) << r.out;
   std::ifstream nodes(out / "nodes.csv"), frames(out / "frames.csv");
@@ -93,7 +97,8 @@ TEST_F(Cli, TracksASynthSequenceAndWritesTheDocumentedColumns) {
   std::getline(nodes, header);
   EXPECT_EQ(header, "frame,node,x_m,y_m,z_m,n_points");
   std::getline(frames, header);
-  EXPECT_EQ(header.rfind("frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm", 0), 0u) << header;
+  EXPECT_EQ(header.rfind("frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm", 0), 0u)
+      << header;
   int rows = 0;
   for (std::string line; std::getline(nodes, line);) ++rows;
   EXPECT_EQ(rows, 6 * 12);
@@ -103,7 +108,9 @@ TEST_F(Cli, TracksASynthSequenceAndWritesTheDocumentedColumns) {
 TEST_F(Cli, SameResultWhateverTheThreadCount) {
   const fs::path seq = good_sequence(3);
   auto nodes_csv = [&](const std::string& extra, const std::string& name) {
-    const CliRun r = run("track --quiet --input " + seq.string() + " " + extra + " --out " + (dir / name).string(), dir);
+    const CliRun r = run(
+        "track --quiet --input " + seq.string() + " " + extra + " --out " + (dir / name).string(),
+        dir);
     EXPECT_EQ(r.code, 0) << r.err;
     std::ifstream in(dir / name / "nodes.csv");
     std::stringstream s;
@@ -117,12 +124,15 @@ TEST_F(Cli, SameResultWhateverTheThreadCount) {
 
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
   const std::string input = std::string(LINKSIGHT_TEST_DATA_DIR) + "/sr305/100.png";
-  const CliRun r = run("track --input " + input + " --crop -0.3,-0.3,0.4,0.3,0.3,1.0 --out " + out.string(), dir);
+  const CliRun r = run(
+      "track --input " + input + " --crop -0.3,-0.3,0.4,0.3,0.3,1.0 --out " + out.string(), dir);
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(fs::exists(out / "nodes.csv"));
 }
 
-TEST_F(Cli, EmptyCloud) { expect_bad_input("--input " + write_ply("e.ply", {}).string(), "e.ply", "empty_cloud"); }
+TEST_F(Cli, EmptyCloud) {
+  expect_bad_input("--input " + write_ply("e.ply", {}).string(), "e.ply", "empty_cloud");
+}
 
 TEST_F(Cli, AllNonFinite) {
   Cloud c;
@@ -139,7 +149,8 @@ TEST_F(Cli, FewerPointsThanNodes) {
 TEST_F(Cli, LostFramesCanBeKept) {
   const fs::path seq = good_sequence(2);
   io::write_ply(seq / "frame_0001.ply", Cloud{});
-  const CliRun r = run("track --input " + seq.string() + " --lost-frames keep --out " + out.string(), dir);
+  const CliRun r =
+      run("track --input " + seq.string() + " --lost-frames keep --out " + out.string(), dir);
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("frame_0001.ply: frame lost (empty_cloud"), std::string::npos) << r.err;
   std::ifstream frames(out / "frames.csv");
@@ -154,7 +165,8 @@ TEST_F(Cli, SomeNonFinitePointsAreDroppedAndCounted) {
   Cloud c = sim::sample_visible_surface(test::test_chain(sim::ChainShape::c_shape), {}, {});
   c.push_back(NAN, NAN, NAN);
   c.push_back(INFINITY, 0.f, 0.5f);
-  const CliRun r = run("track --input " + write_ply("some.ply", c).string() + " --out " + out.string(), dir);
+  const CliRun r =
+      run("track --input " + write_ply("some.ply", c).string() + " --out " + out.string(), dir);
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("some.ply: dropped 2 non-finite points"), std::string::npos) << r.err;
   std::ifstream frames(out / "frames.csv");
@@ -171,53 +183,66 @@ TEST_F(Cli, EmptyDirectory) {
 
 TEST_F(Cli, MalformedPlyMidSequenceLeavesNoOutput) {
   const fs::path seq = good_sequence(3);
-  std::ofstream(seq / "frame_0002.ply") << "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\n"
-                                           "property float y\nproperty float z\nend_header\n1 2 3\n";
+  std::ofstream(seq / "frame_0002.ply")
+      << "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\n"
+         "property float y\nproperty float z\nend_header\n1 2 3\n";
   expect_bad_input("--input " + seq.string(), "frame_0002.ply", "truncated");
 }
 
 TEST_F(Cli, PngNot16Bit) {
   // A valid 8-bit grayscale PNG (1x1) written byte by byte.
-  const unsigned char png8[] = {0x89, 0x50, 0x4E, 0x47, 0x0D, 0x0A, 0x1A, 0x0A, 0x00, 0x00, 0x00, 0x0D, 0x49, 0x48, 0x44,
-                                0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x00, 0x00, 0x00, 0x00, 0x3A,
-                                0x7E, 0x9B, 0x55, 0x00, 0x00, 0x00, 0x0A, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9C, 0x63, 0x60,
-                                0x00, 0x00, 0x00, 0x02, 0x00, 0x01, 0xE5, 0x27, 0xDE, 0xFC, 0x00, 0x00, 0x00, 0x00, 0x49,
-                                0x45, 0x4E, 0x44, 0xAE, 0x42, 0x60, 0x82};
+  const unsigned char png8[] = {
+      0x89, 0x50, 0x4E, 0x47, 0x0D, 0x0A, 0x1A, 0x0A, 0x00, 0x00, 0x00, 0x0D, 0x49, 0x48,
+      0x44, 0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x00, 0x00, 0x00,
+      0x00, 0x3A, 0x7E, 0x9B, 0x55, 0x00, 0x00, 0x00, 0x0A, 0x49, 0x44, 0x41, 0x54, 0x78,
+      0x9C, 0x63, 0x60, 0x00, 0x00, 0x00, 0x02, 0x00, 0x01, 0xE5, 0x27, 0xDE, 0xFC, 0x00,
+      0x00, 0x00, 0x00, 0x49, 0x45, 0x4E, 0x44, 0xAE, 0x42, 0x60, 0x82};
   fs::create_directories(dir / "in");
-  std::ofstream(dir / "in" / "g8.png", std::ios::binary).write(reinterpret_cast<const char*>(png8), sizeof png8);
+  std::ofstream(dir / "in" / "g8.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(png8), sizeof png8);
   io::write_intrinsics(dir / "in" / "intrinsics.json", io::Intrinsics{});
   expect_bad_input("--input " + (dir / "in" / "g8.png").string(), "g8.png", "must be 16-bit");
 }
 
 TEST_F(Cli, PngSizeDiffersFromIntrinsics) {
   fs::create_directories(dir / "in");
-  io::write_depth_png(dir / "in" / "small.png", io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
+  io::write_depth_png(dir / "in" / "small.png",
+                      io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
   io::write_intrinsics(dir / "in" / "intrinsics.json", io::Intrinsics{});
-  expect_bad_input("--input " + (dir / "in" / "small.png").string(), "small.png", "image is 32x24 but intrinsics say 640x480");
+  expect_bad_input("--input " + (dir / "in" / "small.png").string(), "small.png",
+                   "image is 32x24 but intrinsics say 640x480");
 }
 
 TEST_F(Cli, MissingIntrinsics) {
   fs::create_directories(dir / "in" / "deep");
-  io::write_depth_png(dir / "in" / "deep" / "0.png", io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
-  expect_bad_input("--input " + (dir / "in" / "deep" / "0.png").string(), "0.png", "needs --intrinsics");
-  expect_bad_input("--input " + (dir / "in" / "deep" / "0.png").string() + " --intrinsics " + (dir / "nope.json").string(),
+  io::write_depth_png(dir / "in" / "deep" / "0.png",
+                      io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
+  expect_bad_input("--input " + (dir / "in" / "deep" / "0.png").string(), "0.png",
+                   "needs --intrinsics");
+  expect_bad_input("--input " + (dir / "in" / "deep" / "0.png").string() + " --intrinsics " +
+                       (dir / "nope.json").string(),
                    "nope.json", "cannot open");
 }
 
 TEST_F(Cli, MalformedIntrinsics) {
   fs::create_directories(dir / "in");
-  io::write_depth_png(dir / "in" / "0.png", io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
+  io::write_depth_png(dir / "in" / "0.png",
+                      io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
   std::ofstream(dir / "in" / "intrinsics.json") << "{\"width\": 32, ";
-  expect_bad_input("--input " + (dir / "in" / "0.png").string(), "intrinsics.json", "malformed JSON");
+  expect_bad_input("--input " + (dir / "in" / "0.png").string(), "intrinsics.json",
+                   "malformed JSON");
 }
 
 TEST_F(Cli, UnknownFlagAndBadValues) {
   const fs::path seq = good_sequence(1);
   expect_bad_input("--input " + seq.string() + " --bogus 3", "--bogus", "");
-  expect_bad_input("--input " + seq.string() + " --backend cuda", "'cuda'", "expected serial or openmp");
-  expect_bad_input("--input " + seq.string() + " --nodes 1", "TrackerParams.nodes = 1", "must be >= 2");
+  expect_bad_input("--input " + seq.string() + " --backend cuda", "'cuda'",
+                   "expected serial or openmp");
+  expect_bad_input("--input " + seq.string() + " --nodes 1", "TrackerParams.nodes = 1",
+                   "must be >= 2");
   expect_bad_input("--input " + seq.string() + " --nodes abc", "--nodes", "");
-  expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'", "paper or accelerated-som");
+  expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'",
+                   "paper or accelerated-som");
   const CliRun r = run("frobnicate", dir);
   EXPECT_EQ(r.code, 2);
 }

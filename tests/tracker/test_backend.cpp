@@ -51,7 +51,8 @@ TEST_P(BackendEquivalence, OneAssociationPassMatchesSerial) {
     int best = 0;
     float best_d = std::numeric_limits<float>::infinity();
     for (int j = 0; j < static_cast<int>(truth.size()); ++j) {
-      const float dx = pts.x[i] - q[3 * j], dy = pts.y[i] - q[3 * j + 1], dz = pts.z[i] - q[3 * j + 2];
+      const float dx = pts.x[i] - q[3 * j], dy = pts.y[i] - q[3 * j + 1],
+                  dz = pts.z[i] - q[3 * j + 2];
       const float d = dx * dx + dy * dy + dz * dz;
       if (d < best_d) {
         best_d = d;
@@ -82,7 +83,8 @@ TEST_P(BackendEquivalence, TrackerSequenceMatchesSerialOn20kPoints) {
     ASSERT_EQ(ar.size(), ao.size());
     EXPECT_TRUE(std::equal(ar.begin(), ar.end(), ao.begin()));
     for (std::size_t j = 0; j < r.nodes.size(); ++j) {
-      EXPECT_LT((r.nodes[j] - o.nodes[j]).norm(), kBackendTolerance) << "frame " << f << " node " << j;
+      EXPECT_LT((r.nodes[j] - o.nodes[j]).norm(), kBackendTolerance)
+          << "frame " << f << " node " << j;
     }
   }
 }

@@ -17,12 +17,12 @@ TEST(ComponentGeometry, DefaultsAreTheLinkOfThePaper) {
 
 TEST(ComponentGeometry, SdfOfBallAndNeck) {
   const ComponentGeometry g;
-  EXPECT_NEAR(g.sdf({0, 0, 0}), -g.ball_radius, kTol);           // centre: deepest
-  EXPECT_NEAR(g.sdf({0.015, 0, 0}), 0.0, kTol);                   // ball surface
-  EXPECT_NEAR(g.sdf({0, 0, -0.020}), 0.005, kTol);                // behind the ball
+  EXPECT_NEAR(g.sdf({0, 0, 0}), -g.ball_radius, kTol);                 // centre: deepest
+  EXPECT_NEAR(g.sdf({0.015, 0, 0}), 0.0, kTol);                        // ball surface
+  EXPECT_NEAR(g.sdf({0, 0, -0.020}), 0.005, kTol);                     // behind the ball
   EXPECT_NEAR(g.sdf({0, 0.010, 0.025}), 0.010 - g.neck_radius, kTol);  // beside the neck
   EXPECT_NEAR(g.sdf({0, 0, 0.040}), 0.040 - g.neck_length - g.neck_radius, kTol);  // past the cap
-  EXPECT_LT(g.sdf({0, 0, 0.028}), 0.0);                           // inside the neck
+  EXPECT_LT(g.sdf({0, 0, 0.028}), 0.0);  // inside the neck
 }
 
 TEST(ComponentGeometry, ValidateNamesTheField) {

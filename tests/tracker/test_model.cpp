@@ -20,8 +20,9 @@ TEST(Model, EquationsThreeToEight) {
   const ComponentFrame f = frame_from_points(p_i, p_next);
   EXPECT_FALSE(f.degenerate);
   const Eigen::Vector3d delta = p_next - p_i;
-  const double d = std::sqrt(delta.x() * delta.x() + delta.y() * delta.y() + delta.z() * delta.z());  // Eq. 4
-  const double h = std::sqrt(delta.y() * delta.y() + delta.z() * delta.z());                          // Eq. 6
+  const double d =
+      std::sqrt(delta.x() * delta.x() + delta.y() * delta.y() + delta.z() * delta.z());  // Eq. 4
+  const double h = std::sqrt(delta.y() * delta.y() + delta.z() * delta.z());             // Eq. 6
   const Eigen::Matrix3d R = f.X_CK.linear();
   // Eq. 3: Z points from p_i to p_{i+1}.
   EXPECT_TRUE(R.col(2).isApprox(delta / d, kTol));
@@ -53,7 +54,8 @@ TEST(Model, RandomChainsGiveOrthonormalFrames) {
     for (std::size_t i = 0; i < frames.size(); ++i) {
       expect_orthonormal(frames[i].X_CK.linear());
       EXPECT_TRUE(frames[i].X_CK.translation().isApprox(nodes[i], kTol));
-      EXPECT_TRUE(frames[i].X_CK.linear().col(2).isApprox((nodes[i + 1] - nodes[i]).normalized(), 1e-9));
+      EXPECT_TRUE(
+          frames[i].X_CK.linear().col(2).isApprox((nodes[i + 1] - nodes[i]).normalized(), 1e-9));
     }
   }
 }
@@ -93,7 +95,8 @@ TEST(Model, FramesAreContinuousThroughTheSingularDirection) {
 }
 
 TEST(Model, CoincidentPointsKeepReferenceAxis) {
-  const ComponentFrame f = frame_from_points(Eigen::Vector3d(0.1, 0.2, 0.5), Eigen::Vector3d(0.1, 0.2, 0.5));
+  const ComponentFrame f =
+      frame_from_points(Eigen::Vector3d(0.1, 0.2, 0.5), Eigen::Vector3d(0.1, 0.2, 0.5));
   EXPECT_TRUE(f.degenerate);
   expect_orthonormal(f.X_CK.linear());
   EXPECT_TRUE(f.X_CK.linear().col(2).isApprox(Eigen::Vector3d::UnitZ(), kTol));

@@ -13,8 +13,9 @@ using sim::ChainShape;
 
 struct Errors {
   double mean = 0, max = 0;
-  double toward_camera = 0;  // mean of the error component along the line of sight toward the camera
-  double lateral = 0;        // mean norm of the rest
+  double toward_camera =
+      0;               // mean of the error component along the line of sight toward the camera
+  double lateral = 0;  // mean norm of the rest
   int order_errors = 0;
 };
 
@@ -101,19 +102,21 @@ TEST_P(TrackerShapes, FullComponentsTwelveNodesInOrder) {
     // The last node lies beyond the last ball, along its axis.
     const Eigen::Vector3d axis = (truth[11] - truth[10]).normalized();
     EXPECT_GT((r.nodes[11] - truth[10]).dot(axis), 0.005);  // measured 7-10 mm
-    EXPECT_LT(r.sdf_error, 0.004);  // the paper reports < 4 mm
+    EXPECT_LT(r.sdf_error, 0.004);                          // the paper reports < 4 mm
   }
 }
 
 std::string shape_case_name(const ::testing::TestParamInfo<TrackerShapes::ParamType>& p) {
   static const char* const kShape[] = {"straight", "C", "S"};
-  return std::string(to_string(std::get<0>(p.param))) + "_" + kShape[static_cast<int>(std::get<1>(p.param))];
+  return std::string(to_string(std::get<0>(p.param))) + "_" +
+         kShape[static_cast<int>(std::get<1>(p.param))];
 }
 
 INSTANTIATE_TEST_SUITE_P(
     BackendsAndShapes, TrackerShapes,
     ::testing::Combine(::testing::Values(BackendKind::serial, BackendKind::openmp),
-                       ::testing::Values(ChainShape::straight, ChainShape::c_shape, ChainShape::s_shape)),
+                       ::testing::Values(ChainShape::straight, ChainShape::c_shape,
+                                         ChainShape::s_shape)),
     shape_case_name);
 
 // Eq. 9's form samples at constant x. For moderate bends seen broadside that is enough
@@ -137,7 +140,8 @@ TEST(Tracker, PaperInitConvergesOnBroadsideShapes) {
 // 167 mm mean error with 9 nodes out of order when hanging; 28 mm with 6 on the C).
 // The principal-axis init tracks both (7.7 mm, the r/2 bias, in order).
 TEST(Tracker, PaperInitFailsWhereTheLinkRunsAlongCameraYAndPcaDoesNot) {
-  const std::vector<Nodes> cases = {test::hanging_chain(), test::test_chain(ChainShape::c_shape, 0.15)};
+  const std::vector<Nodes> cases = {test::hanging_chain(),
+                                    test::test_chain(ChainShape::c_shape, 0.15)};
   for (std::size_t c = 0; c < cases.size(); ++c) {
     const Nodes& truth = cases[c];
     for (InitMethod init : {InitMethod::paper, InitMethod::pca}) {
@@ -177,8 +181,8 @@ TEST_P(TrackerBackends, ReinitFiresOnEmptyNeighbourhoodAndTrackingRecovers) {
   double baseline = 0;
   for (int f = 0; f < 15; ++f) {
     const bool hide = f >= 5 && f < 10;
-    const FrameResult r = tracker.step(chain_cloud(truth, 30 + f, false, 0.001,
-                                                   hide ? std::vector<int>{4, 5} : std::vector<int>{}));
+    const FrameResult r = tracker.step(chain_cloud(
+        truth, 30 + f, false, 0.001, hide ? std::vector<int>{4, 5} : std::vector<int>{}));
     ASSERT_FALSE(r.lost);
     const Errors e = measure(r.nodes, truth);
     if (f < 5) {
@@ -207,8 +211,8 @@ TEST_P(TrackerBackends, AcceleratedSomNeverReinitializes) {
   FrameResult before;
   for (int f = 0; f < 8; ++f) {
     const bool hide = f >= 4;
-    const FrameResult r = tracker.step(chain_cloud(truth, 40 + f, false, 0.001,
-                                                   hide ? std::vector<int>{4, 5} : std::vector<int>{}));
+    const FrameResult r = tracker.step(chain_cloud(
+        truth, 40 + f, false, 0.001, hide ? std::vector<int>{4, 5} : std::vector<int>{}));
     EXPECT_FALSE(r.reinit);
     if (hide) {
       EXPECT_EQ(r.counts[4], 0);

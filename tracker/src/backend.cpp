@@ -10,8 +10,10 @@ std::unique_ptr<Backend> make_openmp_backend(int threads);
 
 std::string_view to_string(BackendKind kind) {
   switch (kind) {
-    case BackendKind::serial: return "serial";
-    case BackendKind::openmp: return "openmp";
+    case BackendKind::serial:
+      return "serial";
+    case BackendKind::openmp:
+      return "openmp";
   }
   return "unknown";
 }
@@ -33,8 +35,10 @@ std::unique_ptr<Backend> make_backend(BackendKind kind, int threads) {
     throw std::invalid_argument("threads = " + std::to_string(threads) + ": must be >= 0");
   }
   switch (kind) {
-    case BackendKind::serial: return make_serial_backend();
-    case BackendKind::openmp: return make_openmp_backend(threads);
+    case BackendKind::serial:
+      return make_serial_backend();
+    case BackendKind::openmp:
+      return make_openmp_backend(threads);
   }
   throw std::invalid_argument("unknown backend kind");
 }

@@ -16,12 +16,10 @@ void require(bool ok, const char* field, double value, const char* rule) {
 }  // namespace
 
 void ComponentGeometry::validate() const {
-  require(std::isfinite(ball_radius) && ball_radius > 0, "ball_radius", ball_radius,
-          "must be > 0");
-  require(std::isfinite(pitch) && pitch > ball_radius, "pitch", pitch,
-          "must be > ball_radius");
-  require(std::isfinite(neck_radius) && neck_radius > 0 && neck_radius < ball_radius,
-          "neck_radius", neck_radius, "must be in (0, ball_radius)");
+  require(std::isfinite(ball_radius) && ball_radius > 0, "ball_radius", ball_radius, "must be > 0");
+  require(std::isfinite(pitch) && pitch > ball_radius, "pitch", pitch, "must be > ball_radius");
+  require(std::isfinite(neck_radius) && neck_radius > 0 && neck_radius < ball_radius, "neck_radius",
+          neck_radius, "must be in (0, ball_radius)");
   require(std::isfinite(neck_length) && neck_length >= 0 && neck_length <= pitch, "neck_length",
           neck_length, "must be in [0, pitch]");
   require(count >= 1, "count", count, "must be >= 1");

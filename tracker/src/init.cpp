@@ -174,8 +174,7 @@ void InitParams::validate() const {
                                 ": must be in [1, 9]");
   }
   if (!(std::isfinite(pitch) && pitch > 0)) {
-    throw std::invalid_argument("InitParams.pitch = " + std::to_string(pitch) +
-                                ": must be > 0");
+    throw std::invalid_argument("InitParams.pitch = " + std::to_string(pitch) + ": must be > 0");
   }
 }
 
@@ -243,8 +242,7 @@ Nodes som_init(const PointsView& points, int n_nodes, SomInit method, std::uint6
   const Axes ax = principal_axes(t);
   double umin = 0, umax = 0;
   for (std::size_t i = 0; i < t.x.size(); ++i) {
-    const double uu =
-        (Eigen::Vector3d(t.x[i], t.y[i], t.z[i]) - ax.centroid).dot(ax.E.col(0));
+    const double uu = (Eigen::Vector3d(t.x[i], t.y[i], t.z[i]) - ax.centroid).dot(ax.E.col(0));
     umin = std::min(umin, uu);
     umax = std::max(umax, uu);
   }

@@ -29,8 +29,8 @@ ComponentFrame frame_from_points(const Eigen::Vector3d& p_i, const Eigen::Vector
     out.degenerate = true;
     Eigen::Vector3d ref = X_ref - X_ref.dot(Z) * Z;
     if (ref.norm() < 1e-9) {
-      const Eigen::Vector3d alt = std::abs(Z.y()) < 0.9 ? Eigen::Vector3d::UnitY()
-                                                        : Eigen::Vector3d::UnitZ();
+      const Eigen::Vector3d alt =
+          std::abs(Z.y()) < 0.9 ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitZ();
       ref = alt - alt.dot(Z) * Z;
     }
     X = ref.normalized();
@@ -55,8 +55,8 @@ std::vector<ComponentFrame> frames_from_nodes(const Nodes& nodes) {
   // then next), so a run of degenerate frames inherits one X continuously.
   for (std::size_t i = 0; i < m; ++i) {
     if (!frames[i].degenerate) continue;
-    const Eigen::Vector3d Z_ref = i > 0 ? frames[i - 1].X_CK.linear().col(2).eval()
-                                        : Eigen::Vector3d::UnitZ().eval();
+    const Eigen::Vector3d Z_ref =
+        i > 0 ? frames[i - 1].X_CK.linear().col(2).eval() : Eigen::Vector3d::UnitZ().eval();
     Eigen::Vector3d X_ref = Eigen::Vector3d::UnitY();
     if (i > 0) {
       X_ref = frames[i - 1].X_CK.linear().col(0);

@@ -25,8 +25,8 @@ double sdf_error(const PointsView& points, const Nodes& nodes, const ComponentGe
                             q.data(), m, assoc);
     for (std::size_t i = 0; i < len; ++i) {
       // The last node only orients frame M-1 (Eq. 1), so its points belong to frame M-1.
-      const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(assoc[i]),
-                                                  frames.size() - 1);
+      const std::size_t k =
+          std::min<std::size_t>(static_cast<std::size_t>(assoc[i]), frames.size() - 1);
       const Eigen::Vector3d p_C(points.x[b + i], points.y[b + i], points.z[b + i]);
       const Eigen::Vector3d p_K = frames[k].X_CK.inverse() * p_C;  // Eq. (14)
       total += std::abs(geometry.sdf(p_K));                        // Eq. (15)

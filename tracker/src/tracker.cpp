@@ -32,18 +32,25 @@ std::string_view to_string(TrackerMode mode) {
 }
 std::string_view to_string(InitReason r) {
   switch (r) {
-    case InitReason::none: return "none";
-    case InitReason::first_frame: return "first_frame";
-    case InitReason::empty_neighbourhood: return "empty_neighbourhood";
+    case InitReason::none:
+      return "none";
+    case InitReason::first_frame:
+      return "first_frame";
+    case InitReason::empty_neighbourhood:
+      return "empty_neighbourhood";
   }
   return "unknown";
 }
 std::string_view to_string(LostReason r) {
   switch (r) {
-    case LostReason::none: return "none";
-    case LostReason::empty_cloud: return "empty_cloud";
-    case LostReason::all_non_finite: return "all_non_finite";
-    case LostReason::too_few_points: return "too_few_points";
+    case LostReason::none:
+      return "none";
+    case LostReason::empty_cloud:
+      return "empty_cloud";
+    case LostReason::all_non_finite:
+      return "all_non_finite";
+    case LostReason::too_few_points:
+      return "too_few_points";
   }
   return "unknown";
 }
@@ -61,11 +68,11 @@ InitMethod parse_init(std::string_view name) {
 
 struct Tracker::State {
   std::unique_ptr<Backend> backend;
-  std::vector<float> x, y, z;        // finite points of the current frame (SoA)
+  std::vector<float> x, y, z;  // finite points of the current frame (SoA)
   std::vector<std::int32_t> assoc;
-  std::vector<float> q;              // nodes as float xyz for the kernels
+  std::vector<float> q;  // nodes as float xyz for the kernels
   Accumulation acc;
-  Nodes nodes;                       // previous frame's output
+  Nodes nodes;  // previous frame's output
   bool has_previous = false;
 };
 
@@ -136,8 +143,8 @@ FrameResult Tracker::step(const Cloud& cloud) {
   const bool paper = params_.mode == TrackerMode::paper;
   bool initialized_now = false;
   if (!s.has_previous) {
-    s.nodes = paper ? lsq_init(view, m, params_.init)
-                    : som_init(view, m, params_.som_init, params_.seed);
+    s.nodes =
+        paper ? lsq_init(view, m, params_.init) : som_init(view, m, params_.som_init, params_.seed);
     r.init_reason = InitReason::first_frame;
     initialized_now = true;
   }

@@ -16,14 +16,16 @@ const std::filesystem::path kData = LINKSIGHT_TEST_DATA_DIR;
 
 class DepthPng : public ::testing::Test {
  protected:
-  std::filesystem::path dir = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  std::filesystem::path dir =
+      test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
 };
 
 TEST_F(DepthPng, WriteReadRoundTripKeepsEveryBit) {
   DepthImage img;
   img.width = 300;  // rows over 64 KiB force several stored deflate blocks
   img.height = 200;
-  for (int i = 0; i < img.width * img.height; ++i) img.data.push_back(static_cast<std::uint16_t>(i * 2654435761u >> 16));
+  for (int i = 0; i < img.width * img.height; ++i)
+    img.data.push_back(static_cast<std::uint16_t>(i * 2654435761u >> 16));
   img.data[0] = 0;
   img.data[1] = 65535;
   write_depth_png(dir / "d.png", img);
@@ -40,7 +42,8 @@ TEST_F(DepthPng, RejectsEightBitAndColour) {
     (void)read_depth_png(dir / "g8.png");
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("g8.png: depth PNG must be 16-bit"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("g8.png: depth PNG must be 16-bit"), std::string::npos)
+        << e.what();
   }
   std::ofstream(dir / "junk.png") << "not a png";
   EXPECT_THROW((void)read_depth_png(dir / "junk.png"), InputError);
@@ -53,7 +56,7 @@ TEST_F(DepthPng, PlaneBackProjectsToItsDepth) {
   k.cx = 31.5;
   k.cy = 23.5;
   DepthImage img{64, 48, std::vector<std::uint16_t>(64 * 48, 4000)};  // 0.5 m
-  img.data[5] = 0;                                                      // a hole
+  img.data[5] = 0;                                                    // a hole
   const Cloud c = depth_to_cloud(img, k);
   ASSERT_EQ(c.size(), 64u * 48 - 1);
   for (std::size_t i = 0; i < c.size(); ++i) EXPECT_FLOAT_EQ(c.xyz[3 * i + 2], 0.5f);

@@ -20,7 +20,8 @@ TEST(NaturalSort, NumbersByValue) {
 
 class Frames : public ::testing::Test {
  protected:
-  std::filesystem::path dir = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  std::filesystem::path dir =
+      test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
   void touch(const std::string& name) { std::ofstream(dir / name) << "x"; }
 };
 
@@ -52,10 +53,13 @@ TEST_F(Frames, ErrorsNameTheInput) {
     return std::string("no error");
   };
   EXPECT_EQ(message(dir.string()), dir.string() + ": directory has no frames (*.ply, *.png)");
-  EXPECT_EQ(message((dir / "none").string()), (dir / "none").string() + ": no such file or directory");
-  EXPECT_EQ(message((dir / "*.ply").string()), (dir / "*.ply").string() + ": pattern matches no file");
+  EXPECT_EQ(message((dir / "none").string()),
+            (dir / "none").string() + ": no such file or directory");
+  EXPECT_EQ(message((dir / "*.ply").string()),
+            (dir / "*.ply").string() + ": pattern matches no file");
   touch("notes.txt");
-  EXPECT_NE(message((dir / "notes.txt").string()).find("unsupported frame type"), std::string::npos);
+  EXPECT_NE(message((dir / "notes.txt").string()).find("unsupported frame type"),
+            std::string::npos);
 }
 
 TEST_F(Frames, IntrinsicsBesideOrInParent) {

@@ -11,7 +11,8 @@ namespace {
 
 class IntrinsicsFile : public ::testing::Test {
  protected:
-  std::filesystem::path dir = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  std::filesystem::path dir =
+      test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
   std::string error_of(const std::string& json) {
     const auto p = dir / "intrinsics.json";
     std::ofstream(p) << json;
@@ -26,10 +27,12 @@ class IntrinsicsFile : public ::testing::Test {
   }
 };
 
-const char* kGood = R"({"width": 640, "height": 480, "fx": 476.007, "fy": 476.007, "cx": 313.683, "cy": 242.755, "depth_scale": 0.000125})";
+const char* kGood =
+    R"({"width": 640, "height": 480, "fx": 476.007, "fy": 476.007, "cx": 313.683, "cy": 242.755, "depth_scale": 0.000125})";
 
 TEST_F(IntrinsicsFile, ReadsTheSr305File) {
-  const Intrinsics k = read_intrinsics(std::filesystem::path(LINKSIGHT_TEST_DATA_DIR) / "sr305/intrinsics.json");
+  const Intrinsics k =
+      read_intrinsics(std::filesystem::path(LINKSIGHT_TEST_DATA_DIR) / "sr305/intrinsics.json");
   EXPECT_EQ(k.width, 640);
   EXPECT_DOUBLE_EQ(k.fx, 476.007);
   EXPECT_DOUBLE_EQ(k.depth_scale, 0.000125);
@@ -51,8 +54,11 @@ TEST_F(IntrinsicsFile, Errors) {
   EXPECT_EQ(error_of(kGood), "no error");
   EXPECT_NE(error_of("{\"width\": 640,").find("malformed JSON"), std::string::npos);
   EXPECT_NE(error_of(R"({"width": 640})").find("missing key 'height'"), std::string::npos);
-  EXPECT_NE(error_of(R"({"width": "640", "height": 480})").find("key 'width' must be a number"), std::string::npos);
-  EXPECT_NE(error_of(R"({"width": 640.5, "height": 480})").find("key 'width' must be a positive integer"), std::string::npos);
+  EXPECT_NE(error_of(R"({"width": "640", "height": 480})").find("key 'width' must be a number"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(R"({"width": 640.5, "height": 480})").find("key 'width' must be a positive integer"),
+      std::string::npos);
   EXPECT_NE(error_of(R"({"widht": 640})").find("unknown key 'widht'"), std::string::npos);
   EXPECT_NE(error_of(R"([1, 2])").find("expected a JSON object"), std::string::npos);
   std::string neg = kGood;
@@ -74,7 +80,8 @@ TEST_F(IntrinsicsFile, Errors) {
 }
 
 TEST(Intrinsics, ProjectDeprojectRoundTripForEveryModel) {
-  for (Distortion model : {Distortion::none, Distortion::brown_conrady, Distortion::inverse_brown_conrady}) {
+  for (Distortion model :
+       {Distortion::none, Distortion::brown_conrady, Distortion::inverse_brown_conrady}) {
     Intrinsics k;
     k.model = model;
     k.coeffs = {0.12, -0.3, 0.002, -0.001, 0.1};

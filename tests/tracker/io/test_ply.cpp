@@ -20,7 +20,8 @@ std::string error_of(const std::filesystem::path& p) {
 
 class Ply : public ::testing::Test {
  protected:
-  std::filesystem::path dir = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  std::filesystem::path dir =
+      test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
   std::filesystem::path write(const std::string& name, const std::string& content) {
     const auto p = dir / name;
     std::ofstream(p, std::ios::binary) << content;
@@ -51,11 +52,12 @@ TEST_F(Ply, BinaryRoundTrip) {
 }
 
 TEST_F(Ply, AsciiDoublesWithExtraPropertiesAndFaces) {
-  const auto p = write("a.ply",
-                       "ply\nformat ascii 1.0\ncomment hi\nelement vertex 2\nproperty uchar red\n"
-                       "property double x\nproperty double y\nproperty double z\nproperty float nx\n"
-                       "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
-                       "255 0.5 -0.25 1.5 0\n0 1e-3 2 3 1\n3 0 1 1\n");
+  const auto p =
+      write("a.ply",
+            "ply\nformat ascii 1.0\ncomment hi\nelement vertex 2\nproperty uchar red\n"
+            "property double x\nproperty double y\nproperty double z\nproperty float nx\n"
+            "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            "255 0.5 -0.25 1.5 0\n0 1e-3 2 3 1\n3 0 1 1\n");
   const Cloud c = read_ply(p);
   ASSERT_EQ(c.size(), 2u);
   EXPECT_FLOAT_EQ(c.xyz[0], 0.5f);
@@ -64,9 +66,10 @@ TEST_F(Ply, AsciiDoublesWithExtraPropertiesAndFaces) {
 }
 
 TEST_F(Ply, BinaryDoublesAfterAnotherElement) {
-  std::string s = "ply\nformat binary_little_endian 1.0\nelement camera 1\nproperty float f\n"
-                  "element vertex 1\nproperty double z\nproperty double y\nproperty double x\n"
-                  "property int flags\nend_header\n";
+  std::string s =
+      "ply\nformat binary_little_endian 1.0\nelement camera 1\nproperty float f\n"
+      "element vertex 1\nproperty double z\nproperty double y\nproperty double x\n"
+      "property int flags\nend_header\n";
   const float f = 1.f;
   s.append(reinterpret_cast<const char*>(&f), 4);
   const double xyz[3] = {3.0, 2.0, 1.0};  // z, y, x order in this file
@@ -80,38 +83,57 @@ TEST_F(Ply, BinaryDoublesAfterAnotherElement) {
 }
 
 TEST_F(Ply, EmptyVertexElementReadsAsEmptyCloud) {
-  EXPECT_TRUE(read_ply(write("e.ply", "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
-                                      "property float y\nproperty float z\nend_header\n")).empty());
+  EXPECT_TRUE(read_ply(write("e.ply",
+                             "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
+                             "property float y\nproperty float z\nend_header\n"))
+                  .empty());
 }
 
 const std::string kHeader3 =
-    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float "
+    "z\nend_header\n";
 
-TEST_F(Ply, TruncatedAscii) { expect_error("t.ply", kHeader3 + "1 2 3\n4 5 6\n", "truncated: header says 3 vertices, file has 2"); }
+TEST_F(Ply, TruncatedAscii) {
+  expect_error("t.ply", kHeader3 + "1 2 3\n4 5 6\n",
+               "truncated: header says 3 vertices, file has 2");
+}
 TEST_F(Ply, TruncatedBinary) {
-  std::string s = "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
-                  "property float y\nproperty float z\nend_header\n";
+  std::string s =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n";
   s.append(30, '\0');
   expect_error("tb.ply", s, "truncated: header says 4 vertices, file has 2");
 }
-TEST_F(Ply, WrongVertexCount) { expect_error("w.ply", kHeader3 + "1 2 3\n4 5 6\n7 8 9\n1 1 1\n", "wrong vertex count"); }
+TEST_F(Ply, WrongVertexCount) {
+  expect_error("w.ply", kHeader3 + "1 2 3\n4 5 6\n7 8 9\n1 1 1\n", "wrong vertex count");
+}
 TEST_F(Ply, UnsupportedCoordinateType) {
-  expect_error("u.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty int x\nproperty float y\n"
-                        "property float z\nend_header\n1 2 3\n", "unsupported type for vertex property 'x'");
+  expect_error("u.ply",
+               "ply\nformat ascii 1.0\nelement vertex 1\nproperty int x\nproperty float y\n"
+               "property float z\nend_header\n1 2 3\n",
+               "unsupported type for vertex property 'x'");
 }
 TEST_F(Ply, UnknownPropertyType) {
-  expect_error("k.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty half x\nend_header\n", "unsupported property type 'half'");
+  expect_error("k.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty half x\nend_header\n",
+               "unsupported property type 'half'");
 }
 TEST_F(Ply, MissingZ) {
-  expect_error("m.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
-                        "end_header\n1 2\n", "lacks property z");
+  expect_error("m.ply",
+               "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+               "end_header\n1 2\n",
+               "lacks property z");
 }
 TEST_F(Ply, BigEndian) {
-  expect_error("be.ply", "ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n", "unsupported format 'binary_big_endian'");
+  expect_error("be.ply", "ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n",
+               "unsupported format 'binary_big_endian'");
 }
 TEST_F(Ply, NotAPly) { expect_error("n.ply", "hello\n", "not a PLY file"); }
-TEST_F(Ply, BadNumber) { expect_error("bn.ply", kHeader3 + "1 2 3\n4 x 6\n7 8 9\n", "vertex 1: bad number 'x'"); }
-TEST_F(Ply, NoEndHeader) { expect_error("h.ply", "ply\nformat ascii 1.0\nelement vertex 1\n", "truncated header"); }
+TEST_F(Ply, BadNumber) {
+  expect_error("bn.ply", kHeader3 + "1 2 3\n4 x 6\n7 8 9\n", "vertex 1: bad number 'x'");
+}
+TEST_F(Ply, NoEndHeader) {
+  expect_error("h.ply", "ply\nformat ascii 1.0\nelement vertex 1\n", "truncated header");
+}
 TEST_F(Ply, MissingFile) {
   const std::string e = error_of(dir / "nope.ply");
   EXPECT_NE(e.find("nope.ply: cannot open"), std::string::npos);

@@ -1,9 +1,9 @@
 #include "linksight/io/atomic_file.hpp"
 
+#include <unistd.h>
 #include <atomic>
 #include <fstream>
 #include <system_error>
-#include <unistd.h>
 
 #include "linksight/io/error.hpp"
 
@@ -43,7 +43,8 @@ void StagedFiles::commit() {
   for (auto& e : entries_) {
     std::error_code ec;
     fs::rename(e->temp_path, e->final_path, ec);
-    if (ec) throw InputError(e->final_path.string() + ": cannot rename into place: " + ec.message());
+    if (ec)
+      throw InputError(e->final_path.string() + ": cannot rename into place: " + ec.message());
     e->done = true;
   }
 }

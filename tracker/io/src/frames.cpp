@@ -25,7 +25,8 @@ bool is_frame(const fs::path& p) {
 bool natural_less(const std::string& a, const std::string& b) {
   std::size_t i = 0, j = 0;
   while (i < a.size() && j < b.size()) {
-    if (std::isdigit(static_cast<unsigned char>(a[i])) && std::isdigit(static_cast<unsigned char>(b[j]))) {
+    if (std::isdigit(static_cast<unsigned char>(a[i])) &&
+        std::isdigit(static_cast<unsigned char>(b[j]))) {
       std::size_t i2 = i, j2 = j;
       while (i2 < a.size() && std::isdigit(static_cast<unsigned char>(a[i2]))) ++i2;
       while (j2 < b.size() && std::isdigit(static_cast<unsigned char>(b[j2]))) ++j2;
@@ -74,7 +75,8 @@ std::vector<fs::path> list_frames(const std::string& input) {
     return natural_less(a.string(), b.string());
   });
   for (const auto& p : out) {
-    if (!is_frame(p)) throw InputError(p.string() + ": unsupported frame type (expected .ply or .png)");
+    if (!is_frame(p))
+      throw InputError(p.string() + ": unsupported frame type (expected .ply or .png)");
   }
   return out;
 }
@@ -86,15 +88,17 @@ fs::path find_intrinsics(const fs::path& frame, const std::optional<fs::path>& e
   for (const fs::path& c : {dir / "intrinsics.json", dir.parent_path() / "intrinsics.json"}) {
     if (!c.empty() && fs::is_regular_file(c, ec)) return c;
   }
-  throw InputError(frame.string() +
-                   ": depth PNG needs --intrinsics (no intrinsics.json beside it or in its parent)");
+  throw InputError(
+      frame.string() +
+      ": depth PNG needs --intrinsics (no intrinsics.json beside it or in its parent)");
 }
 
 Cloud load_frame(const fs::path& frame, const Intrinsics* intrinsics,
                  const DepthToCloudOptions& options) {
   const std::string e = lower_ext(frame);
   if (e == ".ply") return read_ply(frame);
-  if (e != ".png") throw InputError(frame.string() + ": unsupported frame type (expected .ply or .png)");
+  if (e != ".png")
+    throw InputError(frame.string() + ": unsupported frame type (expected .ply or .png)");
   if (intrinsics == nullptr) throw InputError(frame.string() + ": depth PNG needs intrinsics");
   const DepthImage img = read_depth_png(frame);
   try {

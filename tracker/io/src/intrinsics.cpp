@@ -38,7 +38,8 @@ void Intrinsics::validate() const {
   if (!(std::isfinite(fy) && fy > 0)) bad("fy", fy, "must be > 0");
   if (!std::isfinite(cx)) bad("cx", cx, "must be finite");
   if (!std::isfinite(cy)) bad("cy", cy, "must be finite");
-  if (!(std::isfinite(depth_scale) && depth_scale > 0)) bad("depth_scale", depth_scale, "must be > 0");
+  if (!(std::isfinite(depth_scale) && depth_scale > 0))
+    bad("depth_scale", depth_scale, "must be > 0");
   for (double c : coeffs) {
     if (!std::isfinite(c)) bad("coeffs", c, "must be finite");
   }
@@ -69,8 +70,8 @@ Intrinsics read_intrinsics(const std::filesystem::path& path) {
     throw InputError(file + ": malformed JSON: " + e.what());
   }
   if (!j.is_object()) throw InputError(file + ": expected a JSON object");
-  static const std::set<std::string> known = {"width", "height", "fx", "fy", "cx", "cy",
-                                              "depth_scale", "model", "coeffs"};
+  static const std::set<std::string> known = {"width", "height",      "fx",    "fy",    "cx",
+                                              "cy",    "depth_scale", "model", "coeffs"};
   for (const auto& [key, value] : j.items()) {
     if (!known.count(key)) throw InputError(file + ": unknown key '" + key + "'");
   }
@@ -97,10 +98,14 @@ Intrinsics read_intrinsics(const std::filesystem::path& path) {
   if (j.contains("model")) {
     if (!j["model"].is_string()) throw InputError(file + ": key 'model' must be a string");
     const std::string m = j["model"].get<std::string>();
-    if (m == "none") k.model = Distortion::none;
-    else if (m == "brown_conrady") k.model = Distortion::brown_conrady;
-    else if (m == "inverse_brown_conrady") k.model = Distortion::inverse_brown_conrady;
-    else throw InputError(file + ": key 'model' has unknown value '" + m + "'");
+    if (m == "none")
+      k.model = Distortion::none;
+    else if (m == "brown_conrady")
+      k.model = Distortion::brown_conrady;
+    else if (m == "inverse_brown_conrady")
+      k.model = Distortion::inverse_brown_conrady;
+    else
+      throw InputError(file + ": key 'model' has unknown value '" + m + "'");
   }
   if (j.contains("coeffs")) {
     const auto& c = j["coeffs"];
@@ -108,7 +113,8 @@ Intrinsics read_intrinsics(const std::filesystem::path& path) {
       throw InputError(file + ": key 'coeffs' must be an array of 5 numbers");
     }
     for (std::size_t i = 0; i < 5; ++i) {
-      if (!c[i].is_number()) throw InputError(file + ": key 'coeffs' must be an array of 5 numbers");
+      if (!c[i].is_number())
+        throw InputError(file + ": key 'coeffs' must be an array of 5 numbers");
       k.coeffs[i] = c[i].get<double>();
     }
   } else if (k.model != Distortion::none) {
@@ -123,9 +129,9 @@ Intrinsics read_intrinsics(const std::filesystem::path& path) {
 }
 
 void write_intrinsics(const std::filesystem::path& path, const Intrinsics& k) {
-  nlohmann::json j = {{"width", k.width}, {"height", k.height}, {"fx", k.fx},
-                      {"fy", k.fy},       {"cx", k.cx},         {"cy", k.cy},
-                      {"depth_scale", k.depth_scale}};
+  nlohmann::json j = {
+      {"width", k.width}, {"height", k.height},          {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx},
+      {"cy", k.cy},       {"depth_scale", k.depth_scale}};
   if (k.model != Distortion::none) {
     j["model"] = k.model == Distortion::brown_conrady ? "brown_conrady" : "inverse_brown_conrady";
     j["coeffs"] = k.coeffs;

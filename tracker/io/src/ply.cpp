@@ -18,10 +18,10 @@ enum class Type { i8, u8, i16, u16, i32, u32, f32, f64 };
 
 bool parse_type(const std::string& s, Type& t) {
   static const std::pair<const char*, Type> names[] = {
-      {"char", Type::i8},    {"int8", Type::i8},     {"uchar", Type::u8},  {"uint8", Type::u8},
-      {"short", Type::i16},  {"int16", Type::i16},   {"ushort", Type::u16}, {"uint16", Type::u16},
-      {"int", Type::i32},    {"int32", Type::i32},   {"uint", Type::u32},  {"uint32", Type::u32},
-      {"float", Type::f32},  {"float32", Type::f32}, {"double", Type::f64}, {"float64", Type::f64}};
+      {"char", Type::i8},   {"int8", Type::i8},     {"uchar", Type::u8},   {"uint8", Type::u8},
+      {"short", Type::i16}, {"int16", Type::i16},   {"ushort", Type::u16}, {"uint16", Type::u16},
+      {"int", Type::i32},   {"int32", Type::i32},   {"uint", Type::u32},   {"uint32", Type::u32},
+      {"float", Type::f32}, {"float32", Type::f32}, {"double", Type::f64}, {"float64", Type::f64}};
   for (const auto& [n, ty] : names) {
     if (s == n) {
       t = ty;
@@ -33,10 +33,18 @@ bool parse_type(const std::string& s, Type& t) {
 
 std::size_t type_size(Type t) {
   switch (t) {
-    case Type::i8: case Type::u8: return 1;
-    case Type::i16: case Type::u16: return 2;
-    case Type::i32: case Type::u32: case Type::f32: return 4;
-    case Type::f64: return 8;
+    case Type::i8:
+    case Type::u8:
+      return 1;
+    case Type::i16:
+    case Type::u16:
+      return 2;
+    case Type::i32:
+    case Type::u32:
+    case Type::f32:
+      return 4;
+    case Type::f64:
+      return 8;
   }
   return 0;
 }
@@ -55,14 +63,46 @@ struct Element {
 double read_binary(const char* p, Type t) {
   static_assert(std::endian::native == std::endian::little, "big-endian hosts not supported");
   switch (t) {
-    case Type::i8: { std::int8_t v; std::memcpy(&v, p, 1); return v; }
-    case Type::u8: { std::uint8_t v; std::memcpy(&v, p, 1); return v; }
-    case Type::i16: { std::int16_t v; std::memcpy(&v, p, 2); return v; }
-    case Type::u16: { std::uint16_t v; std::memcpy(&v, p, 2); return v; }
-    case Type::i32: { std::int32_t v; std::memcpy(&v, p, 4); return v; }
-    case Type::u32: { std::uint32_t v; std::memcpy(&v, p, 4); return v; }
-    case Type::f32: { float v; std::memcpy(&v, p, 4); return v; }
-    case Type::f64: { double v; std::memcpy(&v, p, 8); return v; }
+    case Type::i8: {
+      std::int8_t v;
+      std::memcpy(&v, p, 1);
+      return v;
+    }
+    case Type::u8: {
+      std::uint8_t v;
+      std::memcpy(&v, p, 1);
+      return v;
+    }
+    case Type::i16: {
+      std::int16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case Type::u16: {
+      std::uint16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case Type::i32: {
+      std::int32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case Type::u32: {
+      std::uint32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case Type::f32: {
+      float v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case Type::f64: {
+      double v;
+      std::memcpy(&v, p, 8);
+      return v;
+    }
   }
   return 0;
 }
@@ -182,8 +222,8 @@ Cloud read_ply(const std::filesystem::path& path) {
       for (std::size_t k = 0; k < values.size(); ++k) {
         std::string tok;
         if (!(ls >> tok)) {
-          throw fail("vertex " + std::to_string(i) + ": expected " +
-                     std::to_string(values.size()) + " values");
+          throw fail("vertex " + std::to_string(i) + ": expected " + std::to_string(values.size()) +
+                     " values");
         }
         if (k == static_cast<std::size_t>(ix) || k == static_cast<std::size_t>(iy) ||
             k == static_cast<std::size_t>(iz)) {
@@ -228,8 +268,8 @@ Cloud read_ply(const std::filesystem::path& path) {
     in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
     const auto got = static_cast<std::size_t>(in.gcount());
     if (got != buf.size()) {
-      throw fail("truncated: header says " + std::to_string(vertex.count) +
-                 " vertices, file has " + std::to_string(got / (rec ? rec : 1)));
+      throw fail("truncated: header says " + std::to_string(vertex.count) + " vertices, file has " +
+                 std::to_string(got / (rec ? rec : 1)));
     }
     for (std::size_t i = 0; i < vertex.count; ++i) {
       const char* r = buf.data() + i * rec;
@@ -251,7 +291,8 @@ void write_ply(const std::filesystem::path& path, const Cloud& cloud) {
       [&](std::ostream& out) {
         out << "ply\nformat binary_little_endian 1.0\ncomment linksight cloud, metres, camera "
                "frame\nelement vertex "
-            << cloud.size() << "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+            << cloud.size()
+            << "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
         out.write(reinterpret_cast<const char*>(cloud.xyz.data()),
                   static_cast<std::streamsize>(cloud.xyz.size() * sizeof(float)));
       },

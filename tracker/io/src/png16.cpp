@@ -103,7 +103,8 @@ DepthImage read_depth_png(const std::filesystem::path& path) {
   const std::string file = path.string();
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(file + ": cannot open");
-  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)),
+                                std::istreambuf_iterator<char>());
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
   const int len = static_cast<int>(bytes.size());
   int w = 0, h = 0, comp = 0;
@@ -114,7 +115,8 @@ DepthImage read_depth_png(const std::filesystem::path& path) {
     throw InputError(file + ": depth PNG must be 16-bit, this one is 8-bit");
   }
   if (comp != 1) {
-    throw InputError(file + ": depth PNG must have 1 channel, this one has " + std::to_string(comp));
+    throw InputError(file + ": depth PNG must have 1 channel, this one has " +
+                     std::to_string(comp));
   }
   stbi_us* pixels = stbi_load_16_from_memory(data, len, &w, &h, &comp, 1);
   if (pixels == nullptr) throw InputError(file + ": corrupt PNG (" + stbi_failure_reason() + ")");

@@ -32,7 +32,7 @@ struct SurfaceSampling {
   double noise_sigma = 0.0;     ///< axial (along the ray) Gaussian noise [m]
   std::vector<int> hidden;      ///< components not rendered (as if occluded)
   std::uint64_t seed = 1;
-  void validate() const;        ///< throws std::invalid_argument naming the field
+  void validate() const;  ///< throws std::invalid_argument naming the field
 };
 
 /// Camera at the origin looking down +z. Deterministic in `sampling.seed`.

@@ -19,8 +19,8 @@ enum class BackendKind { serial, openmp };
 
 /// Per-node sums of one association pass.
 struct Accumulation {
-  std::vector<double> sum;            ///< 3 per node: Σx, Σy, Σz [m]
-  std::vector<std::int64_t> count;    ///< |N_j|
+  std::vector<double> sum;          ///< 3 per node: Σx, Σy, Σz [m]
+  std::vector<std::int64_t> count;  ///< |N_j|
   void reset(int n_nodes);
 };
 

@@ -23,10 +23,10 @@ enum class InitMethod {
 
 struct InitParams {
   InitMethod method = InitMethod::pca;
-  int poly_order = 3;               ///< polynomial order m of Eq. 9
-  std::size_t max_points = 4000;    ///< thin the cloud to at most this many points (0: all)
-  double pitch = 0.045;             ///< node spacing along the curve for `pca` [m]
-  void validate() const;            ///< throws std::invalid_argument naming the field
+  int poly_order = 3;             ///< polynomial order m of Eq. 9
+  std::size_t max_points = 4000;  ///< thin the cloud to at most this many points (0: all)
+  double pitch = 0.045;           ///< node spacing along the curve for `pca` [m]
+  void validate() const;          ///< throws std::invalid_argument naming the field
 };
 
 /// LSQ initialization: `n_nodes` ordered reference vectors. When `previous` is given

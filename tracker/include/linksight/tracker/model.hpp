@@ -26,10 +26,10 @@ struct ComponentFrame {
 /// `X_ref` projected onto the plane normal to Z (parallel transport of the
 /// neighbouring frame's X), which is continuous in Z. `X_ref` defaults to the
 /// camera y axis. Coincident points (d = 0) keep Z = `Z_ref`.
-[[nodiscard]] ComponentFrame frame_from_points(const Eigen::Vector3d& p_i,
-                                               const Eigen::Vector3d& p_next,
-                                               const Eigen::Vector3d& X_ref = Eigen::Vector3d::UnitY(),
-                                               const Eigen::Vector3d& Z_ref = Eigen::Vector3d::UnitZ());
+[[nodiscard]] ComponentFrame frame_from_points(
+    const Eigen::Vector3d& p_i, const Eigen::Vector3d& p_next,
+    const Eigen::Vector3d& X_ref = Eigen::Vector3d::UnitY(),
+    const Eigen::Vector3d& Z_ref = Eigen::Vector3d::UnitZ());
 
 /// The M frames of a chain of M+1 nodes. Degenerate frames take X from the previous
 /// frame in the chain (or from the next one for frame 0), so X stays continuous

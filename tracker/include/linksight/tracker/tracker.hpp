@@ -23,15 +23,15 @@ enum class TrackerMode {
 
 struct TrackerParams {
   TrackerMode mode = TrackerMode::paper;
-  InitParams init;                              ///< LSQ init (paper mode)
-  SomInit som_init = SomInit::straight_line;    ///< init of the accelerated-SOM mode
+  InitParams init;                            ///< LSQ init (paper mode)
+  SomInit som_init = SomInit::straight_line;  ///< init of the accelerated-SOM mode
   BackendKind backend = BackendKind::serial;
-  int threads = 0;           ///< parallel back ends: 0 = one per core
-  int nodes = 12;            ///< M+1 reference vectors (M = 11 components)
-  int iterations = 4;        ///< association/mean iterations per frame (Algorithm 1)
-  double tolerance = 0.0;    ///< stop early when no node moves more than this [m]; 0: never
-  std::uint64_t seed = 0;    ///< feeds SomInit::random_sample only
-  bool compute_sdf = true;   ///< fill FrameResult::sdf_error (not counted in time_s)
+  int threads = 0;          ///< parallel back ends: 0 = one per core
+  int nodes = 12;           ///< M+1 reference vectors (M = 11 components)
+  int iterations = 4;       ///< association/mean iterations per frame (Algorithm 1)
+  double tolerance = 0.0;   ///< stop early when no node moves more than this [m]; 0: never
+  std::uint64_t seed = 0;   ///< feeds SomInit::random_sample only
+  bool compute_sdf = true;  ///< fill FrameResult::sdf_error (not counted in time_s)
   ComponentGeometry geometry;
 
   /// Throws std::invalid_argument naming the offending field and value.
@@ -46,9 +46,9 @@ enum class InitReason : std::uint8_t {
 
 enum class LostReason : std::uint8_t {
   none,
-  empty_cloud,      ///< the cloud has no points at all
-  all_non_finite,   ///< every point had a NaN or Inf coordinate
-  too_few_points,   ///< fewer finite points than nodes
+  empty_cloud,     ///< the cloud has no points at all
+  all_non_finite,  ///< every point had a NaN or Inf coordinate
+  too_few_points,  ///< fewer finite points than nodes
 };
 
 [[nodiscard]] std::string_view to_string(TrackerMode mode);
@@ -59,18 +59,18 @@ enum class LostReason : std::uint8_t {
 
 /// Output of one frame.
 struct FrameResult {
-  Nodes nodes;                        ///< M+1 reference vectors, camera frame [m]
-  std::vector<std::int64_t> counts;   ///< |N_j| of the last iteration
-  int iterations = 0;                 ///< iterations run
-  bool reinit = false;                ///< LSQ re-initialization fired (Sec. IV.C)
+  Nodes nodes;                       ///< M+1 reference vectors, camera frame [m]
+  std::vector<std::int64_t> counts;  ///< |N_j| of the last iteration
+  int iterations = 0;                ///< iterations run
+  bool reinit = false;               ///< LSQ re-initialization fired (Sec. IV.C)
   InitReason init_reason = InitReason::none;
-  int reinit_node = -1;               ///< first node found with an empty neighbourhood
+  int reinit_node = -1;  ///< first node found with an empty neighbourhood
   bool lost = false;
   LostReason lost_reason = LostReason::none;
-  std::size_t n_points = 0;           ///< finite points used
-  std::size_t n_non_finite = 0;       ///< points dropped for NaN/Inf
-  double time_s = 0.0;                ///< tracking time (excludes the SDF metric) [s]
-  double sdf_error = 0.0;             ///< mean |SDF| [m] (Eq. 16); NaN when lost or disabled
+  std::size_t n_points = 0;      ///< finite points used
+  std::size_t n_non_finite = 0;  ///< points dropped for NaN/Inf
+  double time_s = 0.0;           ///< tracking time (excludes the SDF metric) [s]
+  double sdf_error = 0.0;        ///< mean |SDF| [m] (Eq. 16); NaN when lost or disabled
 };
 
 /// Tracks one link over a sequence of clouds; each frame starts from the previous
