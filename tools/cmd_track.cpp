@@ -85,9 +85,20 @@ int run_track(const TrackOptions& o) {
   if (!o.intrinsics.empty()) explicit_intrinsics = fs::path(o.intrinsics);
   std::map<fs::path, io::Intrinsics> intrinsics_cache;
 
+  // A failed run leaves nothing behind: not even the output directory it created.
   std::error_code ec;
-  fs::create_directories(o.out, ec);
+  const fs::path out_dir(o.out);
+  const bool created_out = !fs::exists(out_dir, ec);
+  fs::create_directories(out_dir, ec);
   if (ec) throw io::InputError(o.out + ": cannot create output directory: " + ec.message());
+  struct RemoveIfFailed {
+    fs::path dir;
+    bool armed;
+    ~RemoveIfFailed() {
+      std::error_code ignored;
+      if (armed && fs::is_empty(dir, ignored)) fs::remove(dir, ignored);
+    }
+  } cleanup{out_dir, created_out};
   io::StagedFiles staged;
   std::ostream& nodes_csv = staged.open(fs::path(o.out) / "nodes.csv");
   std::ostream& frames_csv = staged.open(fs::path(o.out) / "frames.csv");
@@ -102,7 +113,7 @@ int run_track(const TrackOptions& o) {
   for (std::size_t f = 0; f < frames.size(); ++f) {
     const fs::path& path = frames[f];
     const io::Intrinsics* k = nullptr;
-    if (path.extension() == ".png" || path.extension() == ".PNG") {
+    if (io::is_depth_png(path)) {
       const fs::path kp = io::find_intrinsics(path, explicit_intrinsics);
       auto it = intrinsics_cache.find(kp);
       if (it == intrinsics_cache.end())
@@ -158,8 +169,11 @@ int run_track(const TrackOptions& o) {
         {"poly_order", p.init.poly_order},
         {"pitch_m", p.init.pitch},
         {"seed", p.seed}}}};
-  staged.open(fs::path(o.out) / "summary.json") << summary.dump(2) << "\n";
+  // File names need not be UTF-8: replace what JSON cannot hold rather than fail.
+  staged.open(fs::path(o.out) / "summary.json")
+      << summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   staged.commit();
+  cleanup.armed = false;
   if (!o.quiet) {
     std::cout << "tracked " << frames.size() << " frames (" << lost << " lost, " << reinits
               << " re-initialized) with " << to_string(p.mode) << "/" << o.init << " on "

@@ -49,11 +49,7 @@ class Cli : public ::testing::Test {
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
     EXPECT_NE(r.err.find(what), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(out / "nodes.csv"));
-    EXPECT_FALSE(fs::exists(out / "frames.csv"));
-    if (fs::exists(out)) {
-      EXPECT_TRUE(fs::is_empty(out)) << "temporary files left behind";
-    }
+    EXPECT_FALSE(fs::exists(out)) << "a failed run must leave no output, not even its directory";
   }
 
   fs::path good_sequence(int frames) {
@@ -204,6 +200,28 @@ TEST_F(Cli, PngNot16Bit) {
   expect_bad_input("--input " + (dir / "in" / "g8.png").string(), "g8.png", "must be 16-bit");
 }
 
+TEST_F(Cli, MixedCaseExtensionIsADepthPng) {
+  fs::create_directories(dir / "in");
+  io::write_depth_png(dir / "in" / "f.Png", io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
+  io::Intrinsics k;
+  k.width = 32;
+  k.height = 24;
+  io::write_intrinsics(dir / "k.json", k);
+  const CliRun r = run("track --input " + (dir / "in" / "f.Png").string() + " --intrinsics " +
+                           (dir / "k.json").string() + " --out " + out.string(),
+                       dir);
+  EXPECT_EQ(r.code, 0) << r.err;
+}
+
+TEST_F(Cli, ExistingOutputDirectoryIsKeptOnFailure) {
+  fs::create_directories(out);
+  std::ofstream(out / "keep.txt") << "mine";
+  const CliRun r = run("track --input " + (dir / "missing").string() + " --out " + out.string(), dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(fs::exists(out / "keep.txt"));
+  EXPECT_EQ(std::distance(fs::directory_iterator(out), {}), 1);
+}
+
 TEST_F(Cli, PngSizeDiffersFromIntrinsics) {
   fs::create_directories(dir / "in");
   io::write_depth_png(dir / "in" / "small.png",
@@ -243,6 +261,8 @@ TEST_F(Cli, UnknownFlagAndBadValues) {
   expect_bad_input("--input " + seq.string() + " --nodes abc", "--nodes", "");
   expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'",
                    "paper or accelerated-som");
+  expect_bad_input("--input " + seq.string() + " --threads 100000", "TrackerParams.threads = 100000", "<= 1024");
+  expect_bad_input("--input " + seq.string() + " --nodes 2000000000", "TrackerParams.nodes = 2000000000", "<= 1000");
   const CliRun r = run("frobnicate", dir);
   EXPECT_EQ(r.code, 2);
 }

@@ -31,8 +31,8 @@ void Accumulation::reset(int n_nodes) {
 }
 
 std::unique_ptr<Backend> make_backend(BackendKind kind, int threads) {
-  if (threads < 0) {
-    throw std::invalid_argument("threads = " + std::to_string(threads) + ": must be >= 0");
+  if (threads < 0 || threads > 1024) {
+    throw std::invalid_argument("threads = " + std::to_string(threads) + ": must be in [0, 1024]");
   }
   switch (kind) {
     case BackendKind::serial:

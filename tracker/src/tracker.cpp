@@ -18,8 +18,11 @@ namespace {
 
 void TrackerParams::validate() const {
   if (nodes < 2) bad("nodes", std::to_string(nodes), "must be >= 2");
+  if (nodes > kMaxNodes) bad("nodes", std::to_string(nodes), "must be <= 1000");
   if (iterations < 1) bad("iterations", std::to_string(iterations), "must be >= 1");
+  if (iterations > kMaxIterations) bad("iterations", std::to_string(iterations), "must be <= 1000");
   if (threads < 0) bad("threads", std::to_string(threads), "must be >= 0 (0: one per core)");
+  if (threads > kMaxThreads) bad("threads", std::to_string(threads), "must be <= 1024");
   if (!(tolerance >= 0.0 && std::isfinite(tolerance))) {
     bad("tolerance", std::to_string(tolerance), "must be a finite value >= 0");
   }

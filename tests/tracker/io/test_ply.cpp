@@ -127,6 +127,39 @@ TEST_F(Ply, BigEndian) {
   expect_error("be.ply", "ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n",
                "unsupported format 'binary_big_endian'");
 }
+// Counts far beyond the file (or wrapping 64-bit sizes) are truncation, not a crash.
+TEST_F(Ply, HostileBinaryVertexCount) {
+  std::string s = "ply\nformat binary_little_endian 1.0\nelement vertex 6148914691236517206\n"
+                  "property float x\nproperty float y\nproperty float z\nend_header\n";
+  s.append(8, '\0');
+  expect_error("hv.ply", s, "truncated: header says 6148914691236517206 vertices, file has 0");
+}
+TEST_F(Ply, HostileCountBeforeTheVertices) {
+  std::string s = "ply\nformat binary_little_endian 1.0\nelement camera 4611686018427387904\n"
+                  "property float f\nelement vertex 1\nproperty float x\nproperty float y\n"
+                  "property float z\nend_header\n";
+  s.append(12, '\0');
+  expect_error("hc.ply", s, "truncated before the vertex element");
+}
+TEST_F(Ply, HugeAsciiCount) {
+  expect_error("ha.ply", "ply\nformat ascii 1.0\nelement vertex 1000000000000\nproperty float x\n"
+                         "property float y\nproperty float z\nend_header\n1 2 3\n",
+               "truncated: header says 1000000000000 vertices, file has 1");
+}
+TEST_F(Ply, ListPropertyInTheVertexElement) {
+  expect_error("lv.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float extra\n"
+                         "property float x\nproperty float y\nproperty float z\nend_header\n"
+                         "2 9 9 1 2 3\n",
+               "unsupported: list property 'extra' in the vertex element");
+}
+TEST_F(Ply, AsciiUnderflowAndOverflowSaturate) {
+  const Cloud c = read_ply(write("uf.ply", kHeader3 + "1e-400 2 3\n1e400 0 0\n-1e400 0 0\n"));
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_EQ(c.xyz[0], 0.f);
+  EXPECT_TRUE(std::isinf(c.xyz[3]) && c.xyz[3] > 0);
+  EXPECT_TRUE(std::isinf(c.xyz[6]) && c.xyz[6] < 0);
+}
+
 TEST_F(Ply, NotAPly) { expect_error("n.ply", "hello\n", "not a PLY file"); }
 TEST_F(Ply, BadNumber) {
   expect_error("bn.ply", kHeader3 + "1 2 3\n4 x 6\n7 8 9\n", "vertex 1: bad number 'x'");

@@ -22,6 +22,8 @@ bool is_frame(const fs::path& p) {
 }
 }  // namespace
 
+bool is_depth_png(const fs::path& frame) { return lower_ext(frame) == ".png"; }
+
 bool natural_less(const std::string& a, const std::string& b) {
   std::size_t i = 0, j = 0;
   while (i < a.size() && j < b.size()) {

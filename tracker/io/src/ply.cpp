@@ -2,7 +2,10 @@
 
 #include <bit>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -193,6 +196,18 @@ Cloud read_ply(const std::filesystem::path& path) {
   if (ix < 0 || iy < 0 || iz < 0) {
     throw fail(std::string("vertex element lacks property ") + (ix < 0 ? "x" : iy < 0 ? "y" : "z"));
   }
+  for (const Property& p : vertex.props) {
+    if (p.is_list) throw fail("unsupported: list property '" + p.name + "' in the vertex element");
+  }
+  // Everything after the header, to check counts against before trusting them.
+  const std::streamoff data_begin = in.tellg();
+  in.seekg(0, std::ios::end);
+  const auto remaining = static_cast<std::uint64_t>(in.tellg() - data_begin);
+  in.seekg(data_begin);
+  auto truncated = [&](std::uint64_t have) {
+    return fail("truncated: header says " + std::to_string(vertex.count) + " vertices, file has " +
+                std::to_string(have));
+  };
   for (std::size_t i = 0; i < vi; ++i) {
     // Elements before the vertices must be skipped; lists have no fixed size in binary.
     for (const auto& p : elements[i].props) {
@@ -204,7 +219,8 @@ Cloud read_ply(const std::filesystem::path& path) {
   }
 
   Cloud cloud;
-  cloud.reserve(vertex.count);
+  // An ASCII vertex takes at least 6 bytes ("0 0 0\n"): never reserve more than the file holds.
+  cloud.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(vertex.count, remaining / 6 + 1)));
   const bool vertex_is_last = vi + 1 == elements.size();
   if (format == Format::ascii) {
     std::size_t skip = 0;
@@ -215,8 +231,7 @@ Cloud read_ply(const std::filesystem::path& path) {
     std::vector<double> values(vertex.props.size());
     for (std::size_t i = 0; i < vertex.count; ++i) {
       if (!std::getline(in, line)) {
-        throw fail("truncated: header says " + std::to_string(vertex.count) +
-                   " vertices, file has " + std::to_string(i));
+        throw truncated(i);
       }
       std::istringstream ls(line);
       for (std::size_t k = 0; k < values.size(); ++k) {
@@ -227,13 +242,11 @@ Cloud read_ply(const std::filesystem::path& path) {
         }
         if (k == static_cast<std::size_t>(ix) || k == static_cast<std::size_t>(iy) ||
             k == static_cast<std::size_t>(iz)) {
-          try {
-            std::size_t used = 0;
-            values[k] = std::stod(tok, &used);
-            if (used != tok.size()) throw std::invalid_argument(tok);
-          } catch (const std::out_of_range&) {
-            values[k] = tok[0] == '-' ? -HUGE_VAL : HUGE_VAL;
-          } catch (const std::exception&) {
+          // strtod, not stod: out-of-range values saturate (to +-inf or toward 0)
+          // instead of throwing.
+          char* end = nullptr;
+          values[k] = std::strtod(tok.c_str(), &end);
+          if (end != tok.c_str() + tok.size()) {
             throw fail("vertex " + std::to_string(i) + ": bad number '" + tok + "'");
           }
         }
@@ -250,27 +263,32 @@ Cloud read_ply(const std::filesystem::path& path) {
       }
     }
   } else {
-    std::size_t skip = 0;
+    // Sizes in 64 bits with overflow checks: a hostile count must not wrap into a small
+    // buffer. Anything larger than the file is simply truncated.
+    auto mul = [&](std::uint64_t a, std::uint64_t b) {
+      std::uint64_t r = 0;
+      return __builtin_mul_overflow(a, b, &r) ? UINT64_MAX : r;
+    };
+    std::uint64_t skip = 0;
     for (std::size_t i = 0; i < vi; ++i) {
-      std::size_t rec = 0;
+      std::uint64_t rec = 0;
       for (const auto& p : elements[i].props) rec += type_size(p.type);
-      skip += rec * elements[i].count;
+      const std::uint64_t bytes = mul(rec, elements[i].count);
+      skip = bytes > remaining - std::min(skip, remaining) ? UINT64_MAX : skip + bytes;
     }
+    if (skip > remaining) throw fail("truncated before the vertex element");
     in.seekg(static_cast<std::streamoff>(skip), std::ios::cur);
     std::size_t rec = 0;
     std::vector<std::size_t> offset(vertex.props.size());
     for (std::size_t k = 0; k < vertex.props.size(); ++k) {
-      if (vertex.props[k].is_list) throw fail("unsupported: list property in vertex element");
       offset[k] = rec;
       rec += type_size(vertex.props[k].type);
     }
-    std::vector<char> buf(rec * vertex.count);
+    const std::uint64_t need = mul(rec, vertex.count);
+    if (need > remaining - skip) throw truncated((remaining - skip) / rec);
+    std::vector<char> buf(static_cast<std::size_t>(need));
     in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-    const auto got = static_cast<std::size_t>(in.gcount());
-    if (got != buf.size()) {
-      throw fail("truncated: header says " + std::to_string(vertex.count) + " vertices, file has " +
-                 std::to_string(got / (rec ? rec : 1)));
-    }
+    if (static_cast<std::uint64_t>(in.gcount()) != need) throw truncated(static_cast<std::uint64_t>(in.gcount()) / rec);
     for (std::size_t i = 0; i < vertex.count; ++i) {
       const char* r = buf.data() + i * rec;
       cloud.push_back(static_cast<float>(read_binary(r + offset[ix], vertex.props[ix].type)),

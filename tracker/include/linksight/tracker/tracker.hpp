@@ -21,6 +21,11 @@ enum class TrackerMode {
   accelerated_som,  ///< baseline: straight-line/random init, no LSQ re-initialization
 };
 
+/// Upper bounds that validate() enforces: beyond them a value is a typo, not a setting.
+inline constexpr int kMaxNodes = 1000;
+inline constexpr int kMaxIterations = 1000;
+inline constexpr int kMaxThreads = 1024;
+
 struct TrackerParams {
   TrackerMode mode = TrackerMode::paper;
   InitParams init;                            ///< LSQ init (paper mode)

@@ -20,6 +20,9 @@ namespace linksight::io {
 /// when it names no frame.
 [[nodiscard]] std::vector<std::filesystem::path> list_frames(const std::string& input);
 
+/// True for a .png frame, whatever the case of the extension.
+[[nodiscard]] bool is_depth_png(const std::filesystem::path& frame);
+
 /// Finds the intrinsics for a depth PNG: `explicit_path` if given, else intrinsics.json
 /// beside the frame or in its parent directory. Throws InputError naming the frame.
 [[nodiscard]] std::filesystem::path find_intrinsics(
