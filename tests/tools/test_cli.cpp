@@ -202,7 +202,8 @@ TEST_F(Cli, PngNot16Bit) {
 
 TEST_F(Cli, MixedCaseExtensionIsADepthPng) {
   fs::create_directories(dir / "in");
-  io::write_depth_png(dir / "in" / "f.Png", io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
+  io::write_depth_png(dir / "in" / "f.Png",
+                      io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
   io::Intrinsics k;
   k.width = 32;
   k.height = 24;
@@ -216,7 +217,8 @@ TEST_F(Cli, MixedCaseExtensionIsADepthPng) {
 TEST_F(Cli, ExistingOutputDirectoryIsKeptOnFailure) {
   fs::create_directories(out);
   std::ofstream(out / "keep.txt") << "mine";
-  const CliRun r = run("track --input " + (dir / "missing").string() + " --out " + out.string(), dir);
+  const CliRun r =
+      run("track --input " + (dir / "missing").string() + " --out " + out.string(), dir);
   EXPECT_EQ(r.code, 2);
   EXPECT_TRUE(fs::exists(out / "keep.txt"));
   EXPECT_EQ(std::distance(fs::directory_iterator(out), {}), 1);
@@ -261,8 +263,10 @@ TEST_F(Cli, UnknownFlagAndBadValues) {
   expect_bad_input("--input " + seq.string() + " --nodes abc", "--nodes", "");
   expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'",
                    "paper or accelerated-som");
-  expect_bad_input("--input " + seq.string() + " --threads 100000", "TrackerParams.threads = 100000", "<= 1024");
-  expect_bad_input("--input " + seq.string() + " --nodes 2000000000", "TrackerParams.nodes = 2000000000", "<= 1000");
+  expect_bad_input("--input " + seq.string() + " --threads 100000",
+                   "TrackerParams.threads = 100000", "<= 1024");
+  expect_bad_input("--input " + seq.string() + " --nodes 2000000000",
+                   "TrackerParams.nodes = 2000000000", "<= 1000");
   const CliRun r = run("frobnicate", dir);
   EXPECT_EQ(r.code, 2);
 }

@@ -101,11 +101,13 @@ TEST(OpenMPBackend, BitIdenticalForAnyThreadCount) {
     for (int a = 0; a < 3; ++a) q.push_back(static_cast<float>(n[a]));
   }
   Accumulation first;
-  std::vector<std::int32_t> assoc(cloud.size());
-  make_backend(BackendKind::openmp, 1)->associate(pts.view(), q, assoc.data(), first);
+  std::vector<std::int32_t> first_assoc(cloud.size());
+  make_backend(BackendKind::openmp, 1)->associate(pts.view(), q, first_assoc.data(), first);
   for (int threads : {2, 3, 5}) {
     Accumulation acc;
+    std::vector<std::int32_t> assoc(cloud.size(), -1);
     make_backend(BackendKind::openmp, threads)->associate(pts.view(), q, assoc.data(), acc);
+    EXPECT_EQ(assoc, first_assoc) << threads << " threads";
     EXPECT_EQ(acc.sum, first.sum) << threads << " threads";  // exact, not approximate
     EXPECT_EQ(acc.count, first.count);
   }

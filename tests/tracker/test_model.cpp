@@ -67,7 +67,7 @@ double angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 // Rotation-minimizing along the chain: X turns between neighbours by no more than Z does,
 // also where a segment lies exactly on the camera x axis (h = 0 in Eq. 6).
 TEST(Model, ChainFramesTurnOnlyWithTheBendEvenAlongCameraX) {
-  const Nodes nodes = {{-0.02, 0.01, 0.6}, {0.0, 0.0, 0.6}, {0.045, 0.0, 0.6},
+  const Nodes nodes = {{-0.02, 0.01, 0.6}, {0.0, 0.0, 0.6},    {0.045, 0.0, 0.6},
                        {0.09, 0.0, 0.6},   {0.13, 0.02, 0.61}, {0.17, 0.03, 0.6}};
   const auto frames = frames_from_nodes(nodes);
   ASSERT_TRUE(frames[1].X_CK.linear().col(2).isApprox(Eigen::Vector3d::UnitX(), kTol));
@@ -102,13 +102,16 @@ TEST(Model, FrameIsContinuousAsZPassesThroughCameraX) {
     Eigen::Vector3d X_last = Eigen::Vector3d::Zero();
     double max_step = 0.0, paper_jump = 0.0;
     for (double t = -40.0 * M_PI / 180.0; t <= 40.0 * M_PI / 180.0; t += step) {
-      const Eigen::Vector3d Z(std::cos(t), std::sin(t) * std::cos(phi), std::sin(t) * std::sin(phi));
-      const ComponentFrame f = frame_from_points(Eigen::Vector3d(0, 0, 0.5), Eigen::Vector3d(0, 0, 0.5) + 0.045 * Z);
+      const Eigen::Vector3d Z(std::cos(t), std::sin(t) * std::cos(phi),
+                              std::sin(t) * std::sin(phi));
+      const ComponentFrame f =
+          frame_from_points(Eigen::Vector3d(0, 0, 0.5), Eigen::Vector3d(0, 0, 0.5) + 0.045 * Z);
       expect_orthonormal(f.X_CK.linear());
       const Eigen::Vector3d X = f.X_CK.linear().col(0);
       if (X_last != Eigen::Vector3d::Zero()) max_step = std::max(max_step, (X - X_last).norm());
       X_last = X;
-      const Eigen::Vector3d Zn(std::cos(t + step), std::sin(t + step) * std::cos(phi), std::sin(t + step) * std::sin(phi));
+      const Eigen::Vector3d Zn(std::cos(t + step), std::sin(t + step) * std::cos(phi),
+                               std::sin(t + step) * std::sin(phi));
       const Eigen::Vector3d P0 = Eigen::Vector3d(0, Z.z(), -Z.y()).normalized();
       const Eigen::Vector3d P1 = Eigen::Vector3d(0, Zn.z(), -Zn.y()).normalized();
       paper_jump = std::max(paper_jump, (P1 - P0).norm());
@@ -120,7 +123,8 @@ TEST(Model, FrameIsContinuousAsZPassesThroughCameraX) {
 
 TEST(Model, ExactlyAlongCameraXIsFinite) {
   for (double sign : {1.0, -1.0}) {
-    const ComponentFrame f = frame_from_points(Eigen::Vector3d(0.1, 0, 0.5), Eigen::Vector3d(0.1 + sign * 0.045, 0, 0.5));
+    const ComponentFrame f = frame_from_points(Eigen::Vector3d(0.1, 0, 0.5),
+                                               Eigen::Vector3d(0.1 + sign * 0.045, 0, 0.5));
     EXPECT_TRUE(f.carried);
     expect_orthonormal(f.X_CK.linear());
     EXPECT_TRUE(f.X_CK.linear().col(0).isApprox(Eigen::Vector3d::UnitY(), kTol));  // the reference

@@ -95,6 +95,12 @@ TEST(Intrinsics, ProjectDeprojectRoundTripForEveryModel) {
       }
     }
   }
+  // Strong distortion, corner pixel: Newton still inverts it.
+  Intrinsics strong;
+  strong.model = Distortion::brown_conrady;
+  strong.coeffs = {0.5, 0.0, 0.0, 0.0, 0.0};
+  EXPECT_NEAR(strong.project(strong.deproject(0.0, 0.0, 1.0)).x(), 0.0, 1e-6);
+  EXPECT_NEAR(strong.project(strong.deproject(0.0, 0.0, 1.0)).y(), 0.0, 1e-6);
   Intrinsics k;  // the principal point looks straight ahead
   EXPECT_TRUE(k.deproject(k.cx, k.cy, 0.5).isApprox(Eigen::Vector3d(0, 0, 0.5)));
   // Distortion moves corner pixels.
@@ -102,6 +108,29 @@ TEST(Intrinsics, ProjectDeprojectRoundTripForEveryModel) {
   d.model = Distortion::inverse_brown_conrady;
   d.coeffs = {0.1, 0, 0, 0, 0};
   EXPECT_GT((d.deproject(0, 0, 1) - k.deproject(0, 0, 1)).norm(), 0.01);
+}
+
+// Known values, worked by hand from the Brown-Conrady formula (OpenCV/RealSense order
+// k1, k2, p1, p2, k3): x = 0.3, y = -0.2, k1 = 0.1, k2 = 0.01, p1 = 0.001, p2 = 0.002.
+// r2 = 0.13, radial = 1.013169; xd = 0.3039507 - 0.00012 + 0.00062 = 0.3044507,
+// yd = -0.2026338 - 0.00024 + 0.00021 = -0.2026638.
+TEST(Intrinsics, BrownConradyKnownValues) {
+  Intrinsics k;
+  k.fx = 500;
+  k.fy = 400;
+  k.cx = 320;
+  k.cy = 240;
+  k.model = Distortion::brown_conrady;
+  k.coeffs = {0.1, 0.01, 0.001, 0.002, 0.0};
+  const Eigen::Vector2d px = k.project(Eigen::Vector3d(0.6, -0.4, 2.0));  // x = 0.3, y = -0.2
+  EXPECT_NEAR(px.x(), 320 + 500 * 0.3044507, 1e-9);
+  EXPECT_NEAR(px.y(), 240 + 400 * -0.2026638, 1e-9);
+  // The inverse model applies the same polynomial when deprojecting (RealSense SR300 depth).
+  Intrinsics inv = k;
+  inv.model = Distortion::inverse_brown_conrady;
+  const Eigen::Vector3d p = inv.deproject(320 + 500 * 0.3, 240 + 400 * -0.2, 2.0);
+  EXPECT_NEAR(p.x(), 2.0 * 0.3044507, 1e-9);
+  EXPECT_NEAR(p.y(), 2.0 * -0.2026638, 1e-9);
 }
 
 }  // namespace

@@ -129,27 +129,31 @@ TEST_F(Ply, BigEndian) {
 }
 // Counts far beyond the file (or wrapping 64-bit sizes) are truncation, not a crash.
 TEST_F(Ply, HostileBinaryVertexCount) {
-  std::string s = "ply\nformat binary_little_endian 1.0\nelement vertex 6148914691236517206\n"
-                  "property float x\nproperty float y\nproperty float z\nend_header\n";
+  std::string s =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 6148914691236517206\n"
+      "property float x\nproperty float y\nproperty float z\nend_header\n";
   s.append(8, '\0');
   expect_error("hv.ply", s, "truncated: header says 6148914691236517206 vertices, file has 0");
 }
 TEST_F(Ply, HostileCountBeforeTheVertices) {
-  std::string s = "ply\nformat binary_little_endian 1.0\nelement camera 4611686018427387904\n"
-                  "property float f\nelement vertex 1\nproperty float x\nproperty float y\n"
-                  "property float z\nend_header\n";
+  std::string s =
+      "ply\nformat binary_little_endian 1.0\nelement camera 4611686018427387904\n"
+      "property float f\nelement vertex 1\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n";
   s.append(12, '\0');
   expect_error("hc.ply", s, "truncated before the vertex element");
 }
 TEST_F(Ply, HugeAsciiCount) {
-  expect_error("ha.ply", "ply\nformat ascii 1.0\nelement vertex 1000000000000\nproperty float x\n"
-                         "property float y\nproperty float z\nend_header\n1 2 3\n",
+  expect_error("ha.ply",
+               "ply\nformat ascii 1.0\nelement vertex 1000000000000\nproperty float x\n"
+               "property float y\nproperty float z\nend_header\n1 2 3\n",
                "truncated: header says 1000000000000 vertices, file has 1");
 }
 TEST_F(Ply, ListPropertyInTheVertexElement) {
-  expect_error("lv.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float extra\n"
-                         "property float x\nproperty float y\nproperty float z\nend_header\n"
-                         "2 9 9 1 2 3\n",
+  expect_error("lv.ply",
+               "ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float extra\n"
+               "property float x\nproperty float y\nproperty float z\nend_header\n"
+               "2 9 9 1 2 3\n",
                "unsupported: list property 'extra' in the vertex element");
 }
 TEST_F(Ply, AsciiUnderflowAndOverflowSaturate) {

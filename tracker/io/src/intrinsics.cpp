@@ -1,5 +1,6 @@
 #include "linksight/io/intrinsics.hpp"
 
+#include <Eigen/LU>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -20,11 +21,27 @@ Eigen::Vector2d brown_conrady(const Eigen::Vector2d& p, const std::array<double,
   return {x * f + 2 * c[2] * x * y + c[3] * (r2 + 2 * x * x),
           y * f + 2 * c[3] * x * y + c[2] * (r2 + 2 * y * y)};
 }
-// Fixed-point inversion of brown_conrady(); converges for the mild distortion of depth cameras.
+// Inverts brown_conrady() by Newton's method with a numeric Jacobian: plain fixed-point
+// iteration diverges for strong distortion (|1 - J| >= 1). Throws when it does not
+// converge (a point outside the region where the model is invertible).
 Eigen::Vector2d invert_brown_conrady(const Eigen::Vector2d& d, const std::array<double, 5>& c) {
   Eigen::Vector2d p = d;
-  for (int i = 0; i < 20; ++i) p += d - brown_conrady(p, c);
-  return p;
+  for (int i = 0; i < 50; ++i) {
+    const Eigen::Vector2d r = brown_conrady(p, c) - d;
+    if (r.norm() < 1e-14) return p;
+    constexpr double h = 1e-7;
+    Eigen::Matrix2d J;
+    J.col(0) = (brown_conrady(p + Eigen::Vector2d(h, 0), c) -
+                brown_conrady(p - Eigen::Vector2d(h, 0), c)) /
+               (2 * h);
+    J.col(1) = (brown_conrady(p + Eigen::Vector2d(0, h), c) -
+                brown_conrady(p - Eigen::Vector2d(0, h), c)) /
+               (2 * h);
+    p -= J.partialPivLu().solve(r);
+  }
+  if ((brown_conrady(p, c) - d).norm() < 1e-10) return p;
+  throw std::invalid_argument("distortion model cannot be inverted at normalized point (" +
+                              std::to_string(d.x()) + ", " + std::to_string(d.y()) + ")");
 }
 }  // namespace
 

@@ -1,11 +1,11 @@
 #include "linksight/io/ply.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
-#include <algorithm>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -288,7 +288,8 @@ Cloud read_ply(const std::filesystem::path& path) {
     if (need > remaining - skip) throw truncated((remaining - skip) / rec);
     std::vector<char> buf(static_cast<std::size_t>(need));
     in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-    if (static_cast<std::uint64_t>(in.gcount()) != need) throw truncated(static_cast<std::uint64_t>(in.gcount()) / rec);
+    if (static_cast<std::uint64_t>(in.gcount()) != need)
+      throw truncated(static_cast<std::uint64_t>(in.gcount()) / rec);
     for (std::size_t i = 0; i < vertex.count; ++i) {
       const char* r = buf.data() + i * rec;
       cloud.push_back(static_cast<float>(read_binary(r + offset[ix], vertex.props[ix].type)),
