@@ -14,6 +14,8 @@ packages=(
   libcli11-dev              # CLI flags
   nlohmann-json3-dev        # intrinsics.json, summary.json
   libstb-dev                # PNG decoding (stb_image)
+  ocl-icd-opencl-dev opencl-headers  # OpenCL back end: ICD loader and headers
+  pocl-opencl-icd           # an OpenCL CPU device, so every OpenCL test runs anywhere
 )
 
 missing=()

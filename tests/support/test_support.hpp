@@ -10,6 +10,7 @@
 #include "linksight/sim/synthetic_chain.hpp"
 #include "linksight/tracker/backend.hpp"
 #include "linksight/tracker/init.hpp"
+#include "linksight/tracker/tracker.hpp"
 
 #include <gtest/gtest.h>
 
@@ -49,9 +50,39 @@ inline Nodes hanging_chain(double bend = 0.0, const ComponentGeometry& g = {}) {
   return sim::chain_nodes(g, sim::shape_bends(sim::ChainShape::c_shape, g.count, bend), X_CB);
 }
 
+/// One back end to test against the serial reference; OpenCL in both accumulations.
+struct BackendCase {
+  BackendKind kind = BackendKind::serial;
+  ClAccumulation accumulation = ClAccumulation::reduction;
+};
+inline std::vector<BackendCase> all_backends() {
+  return {{BackendKind::serial},
+          {BackendKind::openmp},
+          {BackendKind::opencl, ClAccumulation::reduction},
+          {BackendKind::opencl, ClAccumulation::atomic}};
+}
+inline std::string case_name(const BackendCase& c) {
+  std::string n(to_string(c.kind));
+  if (c.kind == BackendKind::opencl) n += c.accumulation == ClAccumulation::atomic ? "_atomic" : "_reduction";
+  return n;
+}
 /// gtest case name of a back-end parameter.
-inline std::string backend_name(const ::testing::TestParamInfo<BackendKind>& p) {
-  return std::string(to_string(p.param));
+inline std::string backend_name(const ::testing::TestParamInfo<BackendCase>& p) {
+  return case_name(p.param);
+}
+/// Make a back end of this case (OpenMP with 2 threads).
+inline std::unique_ptr<Backend> make(const BackendCase& c) {
+  OpenCLOptions o;
+  o.accumulation = c.accumulation;
+  return make_backend(c.kind, 2, o);
+}
+/// Tracker parameters selecting this case (OpenMP with 2 threads).
+inline TrackerParams params_for(const BackendCase& c) {
+  TrackerParams p;
+  p.backend = c.kind;
+  p.threads = 2;
+  p.opencl.accumulation = c.accumulation;
+  return p;
 }
 
 /// A fresh, empty scratch directory for one test.

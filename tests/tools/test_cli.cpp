@@ -257,7 +257,7 @@ TEST_F(Cli, UnknownFlagAndBadValues) {
   const fs::path seq = good_sequence(1);
   expect_bad_input("--input " + seq.string() + " --bogus 3", "--bogus", "");
   expect_bad_input("--input " + seq.string() + " --backend cuda", "'cuda'",
-                   "expected serial or openmp");
+                   "expected serial, openmp or opencl");
   expect_bad_input("--input " + seq.string() + " --nodes 1", "TrackerParams.nodes = 1",
                    "must be >= 2");
   expect_bad_input("--input " + seq.string() + " --nodes abc", "--nodes", "");

@@ -1,6 +1,8 @@
 // Every back end against the serial reference: same associations, sums within rounding,
-// and the same result whatever the thread count.
+// and the same result whatever the thread count or work-group size.
 #include <gtest/gtest.h>
+
+#include <numeric>
 
 #include "linksight/tracker/backend.hpp"
 #include "linksight/tracker/tracker.hpp"
@@ -9,6 +11,7 @@
 namespace linksight {
 namespace {
 
+using test::BackendCase;
 using test::kBackendTolerance;
 
 Cloud big_cloud(std::size_t target, std::uint64_t seed) {
@@ -20,58 +23,94 @@ Cloud big_cloud(std::size_t target, std::uint64_t seed) {
   return sim::sample_visible_surface(test::test_chain(sim::ChainShape::s_shape), {}, s);
 }
 
-class BackendEquivalence : public ::testing::TestWithParam<BackendKind> {};
+std::vector<float> as_float(const Nodes& nodes) {
+  std::vector<float> q;
+  for (const auto& n : nodes) {
+    for (int a = 0; a < 3; ++a) q.push_back(static_cast<float>(n[a]));
+  }
+  return q;
+}
+
+struct Pass {
+  std::vector<std::int32_t> assoc;
+  Accumulation acc;
+};
+Pass one_pass(Backend& b, const PointsView& v, const std::vector<float>& q) {
+  Pass p;
+  b.set_points(v);
+  b.associate(q, p.acc);
+  const auto a = b.association();
+  p.assoc.assign(a.begin(), a.end());
+  return p;
+}
+
+void expect_same_as(const Pass& ref, const Pass& other) {
+  EXPECT_EQ(ref.assoc, other.assoc);
+  EXPECT_EQ(ref.acc.count, other.acc.count);
+  for (std::size_t j = 0; j < ref.acc.count.size(); ++j) {
+    if (ref.acc.count[j] == 0) continue;
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(ref.acc.sum[3 * j + a] / ref.acc.count[j],
+                  other.acc.sum[3 * j + a] / other.acc.count[j], kBackendTolerance);
+    }
+  }
+}
+
+class BackendEquivalence : public ::testing::TestWithParam<BackendCase> {};
 
 TEST_P(BackendEquivalence, OneAssociationPassMatchesSerial) {
   const Cloud cloud = big_cloud(20000, 5);
   ASSERT_GT(cloud.size(), 15000u);
   const test::Soa pts(cloud);
-  const Nodes truth = test::test_chain(sim::ChainShape::s_shape);
-  std::vector<float> q;
-  for (const auto& n : truth) {
-    for (int a = 0; a < 3; ++a) q.push_back(static_cast<float>(n[a]));
-  }
+  const std::vector<float> q = as_float(test::test_chain(sim::ChainShape::s_shape));
   auto serial = make_backend(BackendKind::serial, 0);
-  auto other = make_backend(GetParam(), 2);
-  std::vector<std::int32_t> a_ref(cloud.size()), a_other(cloud.size());
-  Accumulation acc_ref, acc_other;
-  serial->associate(pts.view(), q, a_ref.data(), acc_ref);
-  other->associate(pts.view(), q, a_other.data(), acc_other);
-  EXPECT_EQ(a_ref, a_other);
-  EXPECT_EQ(acc_ref.count, acc_other.count);
-  for (std::size_t j = 0; j < acc_ref.count.size(); ++j) {
-    for (int a = 0; a < 3; ++a) {
-      const double m_ref = acc_ref.sum[3 * j + a] / acc_ref.count[j];
-      const double m_other = acc_other.sum[3 * j + a] / acc_other.count[j];
-      EXPECT_NEAR(m_ref, m_other, kBackendTolerance);
-    }
-  }
+  auto other = test::make(GetParam());
+  const Pass ref = one_pass(*serial, pts.view(), q);
+  expect_same_as(ref, one_pass(*other, pts.view(), q));
   // Brute-force check of Eq. 11 on the reference, in the kernels' float arithmetic.
+  const int m = static_cast<int>(q.size() / 3);
   for (std::size_t i = 0; i < cloud.size(); i += 97) {
     int best = 0;
     float best_d = std::numeric_limits<float>::infinity();
-    for (int j = 0; j < static_cast<int>(truth.size()); ++j) {
-      const float dx = pts.x[i] - q[3 * j], dy = pts.y[i] - q[3 * j + 1],
-                  dz = pts.z[i] - q[3 * j + 2];
+    for (int j = 0; j < m; ++j) {
+      const float dx = pts.x[i] - q[3 * j], dy = pts.y[i] - q[3 * j + 1], dz = pts.z[i] - q[3 * j + 2];
       const float d = dx * dx + dy * dy + dz * dz;
       if (d < best_d) {
         best_d = d;
         best = j;
       }
     }
-    ASSERT_EQ(a_ref[i], best) << "point " << i;
+    ASSERT_EQ(ref.assoc[i], best) << "point " << i;
+  }
+}
+
+// 0, 1 and 11 points (fewer than nodes), and 1,000,000 points.
+TEST_P(BackendEquivalence, TinyAndHugeClouds) {
+  const std::vector<float> q = as_float(test::test_chain(sim::ChainShape::c_shape));
+  auto serial = make_backend(BackendKind::serial, 0);
+  auto other = test::make(GetParam());
+  const Cloud big = big_cloud(1200000, 8);
+  for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{11}, std::size_t{1000000}}) {
+    ASSERT_GE(big.size(), n);
+    Cloud c;
+    for (std::size_t i = 0; i < n; ++i) c.push_back(big.point(i * (big.size() / std::max<std::size_t>(n, 1))));
+    const test::Soa pts(c);
+    const Pass ref = one_pass(*serial, pts.view(), q);
+    const Pass o = one_pass(*other, pts.view(), q);
+    SCOPED_TRACE(n);
+    expect_same_as(ref, o);
+    EXPECT_EQ(std::accumulate(o.acc.count.begin(), o.acc.count.end(), std::int64_t{0}),
+              static_cast<std::int64_t>(n));
   }
 }
 
 TEST_P(BackendEquivalence, TrackerSequenceMatchesSerialOn20kPoints) {
   TrackerParams p;
-  p.backend = BackendKind::serial;
   Tracker ref(p);
-  p.backend = GetParam();
-  p.threads = 2;
-  Tracker other(p);
+  Tracker other(test::params_for(GetParam()));
   for (int f = 0; f < 5; ++f) {
-    const Cloud cloud = big_cloud(20000, 100 + f);
+    // Grows, shrinks and grows again: buffers must follow.
+    const Cloud cloud = big_cloud(f == 2 ? 8000 : 20000 + 3000 * f, 100 + f);
     const FrameResult r = ref.step(cloud);
     const FrameResult o = other.step(cloud);
     ASSERT_EQ(r.nodes.size(), o.nodes.size());
@@ -83,38 +122,30 @@ TEST_P(BackendEquivalence, TrackerSequenceMatchesSerialOn20kPoints) {
     ASSERT_EQ(ar.size(), ao.size());
     EXPECT_TRUE(std::equal(ar.begin(), ar.end(), ao.begin()));
     for (std::size_t j = 0; j < r.nodes.size(); ++j) {
-      EXPECT_LT((r.nodes[j] - o.nodes[j]).norm(), kBackendTolerance)
-          << "frame " << f << " node " << j;
+      EXPECT_LT((r.nodes[j] - o.nodes[j]).norm(), kBackendTolerance) << "frame " << f << " node " << j;
     }
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Backends, BackendEquivalence,
-                         ::testing::Values(BackendKind::serial, BackendKind::openmp),
+INSTANTIATE_TEST_SUITE_P(Backends, BackendEquivalence, ::testing::ValuesIn(test::all_backends()),
                          test::backend_name);
 
 TEST(OpenMPBackend, BitIdenticalForAnyThreadCount) {
   const Cloud cloud = big_cloud(50000, 9);
   const test::Soa pts(cloud);
-  std::vector<float> q;
-  for (const auto& n : test::test_chain(sim::ChainShape::c_shape)) {
-    for (int a = 0; a < 3; ++a) q.push_back(static_cast<float>(n[a]));
-  }
-  Accumulation first;
-  std::vector<std::int32_t> first_assoc(cloud.size());
-  make_backend(BackendKind::openmp, 1)->associate(pts.view(), q, first_assoc.data(), first);
+  const std::vector<float> q = as_float(test::test_chain(sim::ChainShape::c_shape));
+  const Pass first = one_pass(*make_backend(BackendKind::openmp, 1), pts.view(), q);
   for (int threads : {2, 3, 5}) {
-    Accumulation acc;
-    std::vector<std::int32_t> assoc(cloud.size(), -1);
-    make_backend(BackendKind::openmp, threads)->associate(pts.view(), q, assoc.data(), acc);
-    EXPECT_EQ(assoc, first_assoc) << threads << " threads";
-    EXPECT_EQ(acc.sum, first.sum) << threads << " threads";  // exact, not approximate
-    EXPECT_EQ(acc.count, first.count);
+    const Pass p = one_pass(*make_backend(BackendKind::openmp, threads), pts.view(), q);
+    EXPECT_EQ(p.assoc, first.assoc) << threads << " threads";
+    EXPECT_EQ(p.acc.sum, first.acc.sum) << threads << " threads";  // exact, not approximate
+    EXPECT_EQ(p.acc.count, first.acc.count);
   }
 }
 
 TEST(Backend, ParseNamesTheBadValue) {
   EXPECT_EQ(parse_backend("openmp"), BackendKind::openmp);
+  EXPECT_EQ(parse_backend("opencl"), BackendKind::opencl);
   try {
     (void)parse_backend("cuda");
     FAIL();

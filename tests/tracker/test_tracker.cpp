@@ -48,12 +48,10 @@ Cloud chain_cloud(const Nodes& truth, std::uint64_t seed, bool necks, double noi
   return sim::sample_visible_surface(truth, {}, s);
 }
 
-class TrackerShapes : public ::testing::TestWithParam<std::tuple<BackendKind, ChainShape>> {
+class TrackerShapes : public ::testing::TestWithParam<std::tuple<test::BackendCase, ChainShape>> {
  protected:
   TrackerParams params(int nodes) const {
-    TrackerParams p;
-    p.backend = std::get<0>(GetParam());
-    p.threads = 2;
+    TrackerParams p = test::params_for(std::get<0>(GetParam()));
     p.nodes = nodes;
     p.init.method = InitMethod::pca;
     return p;
@@ -108,13 +106,13 @@ TEST_P(TrackerShapes, FullComponentsTwelveNodesInOrder) {
 
 std::string shape_case_name(const ::testing::TestParamInfo<TrackerShapes::ParamType>& p) {
   static const char* const kShape[] = {"straight", "C", "S"};
-  return std::string(to_string(std::get<0>(p.param))) + "_" +
+  return test::case_name(std::get<0>(p.param)) + "_" +
          kShape[static_cast<int>(std::get<1>(p.param))];
 }
 
 INSTANTIATE_TEST_SUITE_P(
     BackendsAndShapes, TrackerShapes,
-    ::testing::Combine(::testing::Values(BackendKind::serial, BackendKind::openmp),
+    ::testing::Combine(::testing::ValuesIn(test::all_backends()),
                        ::testing::Values(ChainShape::straight, ChainShape::c_shape,
                                          ChainShape::s_shape)),
     shape_case_name);
@@ -163,12 +161,10 @@ TEST(Tracker, PaperInitFailsWhereTheLinkRunsAlongCameraYAndPcaDoesNot) {
   }
 }
 
-class TrackerBackends : public ::testing::TestWithParam<BackendKind> {
+class TrackerBackends : public ::testing::TestWithParam<test::BackendCase> {
  protected:
   TrackerParams params(int nodes = 11) const {
-    TrackerParams p;
-    p.backend = GetParam();
-    p.threads = 2;
+    TrackerParams p = test::params_for(GetParam());
     p.nodes = nodes;
     return p;
   }
@@ -308,8 +304,7 @@ TEST_P(TrackerBackends, ResetStartsOverAndToleranceStopsEarly) {
   EXPECT_EQ(tracker.step(chain_cloud(truth, 5, false, 0.0)).init_reason, InitReason::first_frame);
 }
 
-INSTANTIATE_TEST_SUITE_P(Backends, TrackerBackends,
-                         ::testing::Values(BackendKind::serial, BackendKind::openmp),
+INSTANTIATE_TEST_SUITE_P(Backends, TrackerBackends, ::testing::ValuesIn(test::all_backends()),
                          test::backend_name);
 
 TEST(TrackerParams, ValidateNamesFieldAndValue) {

@@ -7,6 +7,7 @@ namespace linksight {
 
 std::unique_ptr<Backend> make_serial_backend();
 std::unique_ptr<Backend> make_openmp_backend(int threads);
+std::unique_ptr<Backend> make_opencl_backend(const OpenCLOptions& options);
 
 std::string_view to_string(BackendKind kind) {
   switch (kind) {
@@ -14,6 +15,8 @@ std::string_view to_string(BackendKind kind) {
       return "serial";
     case BackendKind::openmp:
       return "openmp";
+    case BackendKind::opencl:
+      return "opencl";
   }
   return "unknown";
 }
@@ -21,8 +24,9 @@ std::string_view to_string(BackendKind kind) {
 BackendKind parse_backend(std::string_view name) {
   if (name == "serial") return BackendKind::serial;
   if (name == "openmp") return BackendKind::openmp;
+  if (name == "opencl") return BackendKind::opencl;
   throw std::invalid_argument("unknown backend '" + std::string(name) +
-                              "' (expected serial or openmp)");
+                              "' (expected serial, openmp or opencl)");
 }
 
 void Accumulation::reset(int n_nodes) {
@@ -30,7 +34,18 @@ void Accumulation::reset(int n_nodes) {
   count.assign(static_cast<std::size_t>(n_nodes), 0);
 }
 
-std::unique_ptr<Backend> make_backend(BackendKind kind, int threads) {
+void OpenCLOptions::validate() const {
+  if (platform < -1) {
+    throw std::invalid_argument("OpenCLOptions.platform = " + std::to_string(platform) +
+                                ": must be >= 0, or -1 for any");
+  }
+  if (work_group_size > 4096) {
+    throw std::invalid_argument("OpenCLOptions.work_group_size = " +
+                                std::to_string(work_group_size) + ": must be <= 4096 (0: auto)");
+  }
+}
+
+std::unique_ptr<Backend> make_backend(BackendKind kind, int threads, const OpenCLOptions& opencl) {
   if (threads < 0 || threads > 1024) {
     throw std::invalid_argument("threads = " + std::to_string(threads) + ": must be in [0, 1024]");
   }
@@ -39,6 +54,8 @@ std::unique_ptr<Backend> make_backend(BackendKind kind, int threads) {
       return make_serial_backend();
     case BackendKind::openmp:
       return make_openmp_backend(threads);
+    case BackendKind::opencl:
+      return make_opencl_backend(opencl);
   }
   throw std::invalid_argument("unknown backend kind");
 }

@@ -18,8 +18,15 @@ class OpenMPBackend final : public Backend {
   explicit OpenMPBackend(int threads) : threads_(threads > 0 ? threads : omp_get_num_procs()) {}
   BackendKind kind() const override { return BackendKind::openmp; }
 
-  void associate(const PointsView& p, const std::vector<float>& q, std::int32_t* assoc,
-                 Accumulation& acc) override {
+  void set_points(const PointsView& points) override {
+    points_ = points;
+    assoc_.resize(points.size());
+  }
+  std::span<const std::int32_t> association() override { return assoc_; }
+
+  void associate(const std::vector<float>& q, Accumulation& acc) override {
+    const PointsView& p = points_;
+    std::int32_t* assoc = assoc_.data();
     const int m = static_cast<int>(q.size() / 3);
     const std::size_t n = p.size();
     const std::size_t chunks = (n + kChunk - 1) / kChunk;
@@ -48,6 +55,8 @@ class OpenMPBackend final : public Backend {
 
  private:
   int threads_;
+  PointsView points_;
+  std::vector<std::int32_t> assoc_;
   std::vector<double> sum_;
   std::vector<std::int64_t> count_;
 };

@@ -8,13 +8,22 @@ namespace {
 class SerialBackend final : public Backend {
  public:
   BackendKind kind() const override { return BackendKind::serial; }
-  void associate(const PointsView& p, const std::vector<float>& q, std::int32_t* assoc,
-                 Accumulation& acc) override {
+  void set_points(const PointsView& points) override {
+    points_ = points;
+    assoc_.resize(points.size());  // grows only in capacity
+  }
+  void associate(const std::vector<float>& q, Accumulation& acc) override {
     const int m = static_cast<int>(q.size() / 3);
     acc.reset(m);
-    detail::associate_range(p.x.data(), p.y.data(), p.z.data(), 0, p.size(), q.data(), m, assoc,
-                            acc.sum.data(), acc.count.data());
+    detail::associate_range(points_.x.data(), points_.y.data(), points_.z.data(), 0,
+                            points_.size(), q.data(), m, assoc_.data(), acc.sum.data(),
+                            acc.count.data());
   }
+  std::span<const std::int32_t> association() override { return assoc_; }
+
+ private:
+  PointsView points_;
+  std::vector<std::int32_t> assoc_;
 };
 
 }  // namespace

@@ -28,6 +28,7 @@ void TrackerParams::validate() const {
   }
   init.validate();
   geometry.validate();
+  opencl.validate();
 }
 
 std::string_view to_string(TrackerMode mode) {
@@ -72,7 +73,7 @@ InitMethod parse_init(std::string_view name) {
 struct Tracker::State {
   std::unique_ptr<Backend> backend;
   std::vector<float> x, y, z;  // finite points of the current frame (SoA)
-  std::vector<std::int32_t> assoc;
+  bool has_association = false;
   std::vector<float> q;  // nodes as float xyz for the kernels
   Accumulation acc;
   Nodes nodes;  // previous frame's output
@@ -82,7 +83,7 @@ struct Tracker::State {
 Tracker::Tracker(const TrackerParams& params) : params_(params) {
   params_.validate();
   state_ = std::make_unique<State>();
-  state_->backend = make_backend(params_.backend, params_.threads);
+  state_->backend = make_backend(params_.backend, params_.threads, params_.opencl);
   state_->q.resize(3 * static_cast<std::size_t>(params_.nodes));
 }
 Tracker::~Tracker() = default;
@@ -95,7 +96,8 @@ void Tracker::reset() {
 }
 
 std::span<const std::int32_t> Tracker::last_association() const {
-  return {state_->assoc.data(), state_->assoc.size()};
+  if (!state_->has_association) return {};
+  return state_->backend->association();
 }
 
 FrameResult Tracker::step(const Cloud& cloud) {
@@ -119,7 +121,6 @@ FrameResult Tracker::step(const Cloud& cloud) {
   s.x.resize(n);
   s.y.resize(n);
   s.z.resize(n);
-  s.assoc.resize(n);
   r.n_points = n;
   r.n_non_finite = n_total - n;
   const int m = params_.nodes;
@@ -137,12 +138,13 @@ FrameResult Tracker::step(const Cloud& cloud) {
     r.nodes = s.nodes;
     r.counts.assign(static_cast<std::size_t>(m), 0);
     r.sdf_error = std::numeric_limits<double>::quiet_NaN();
-    s.assoc.clear();
+    s.has_association = false;
     r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
     return r;
   }
 
   const PointsView view{{s.x.data(), n}, {s.y.data(), n}, {s.z.data(), n}};
+  s.backend->set_points(view);  // one upload per frame
   const bool paper = params_.mode == TrackerMode::paper;
   bool initialized_now = false;
   if (!s.has_previous) {
@@ -160,7 +162,8 @@ FrameResult Tracker::step(const Cloud& cloud) {
     for (int j = 0; j < m; ++j) {
       for (int a = 0; a < 3; ++a) s.q[3 * j + a] = static_cast<float>(s.nodes[j][a]);
     }
-    s.backend->associate(view, s.q, s.assoc.data(), s.acc);  // Eq. (11)
+    s.backend->associate(s.q, s.acc);  // Eq. (11)
+    s.has_association = true;
     ++r.iterations;
     const auto empty = std::find(s.acc.count.begin(), s.acc.count.end(), 0);
     if (empty != s.acc.count.end() && paper && !initialized_now) {
@@ -188,6 +191,7 @@ FrameResult Tracker::step(const Cloud& cloud) {
   r.nodes = s.nodes;
   r.counts = s.acc.count;
   r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.device_time_s = s.backend->device_seconds();
   r.sdf_error = params_.compute_sdf ? sdf_error(view, s.nodes, params_.geometry)
                                     : std::numeric_limits<double>::quiet_NaN();
   return r;

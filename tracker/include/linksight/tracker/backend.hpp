@@ -4,6 +4,9 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -11,11 +14,34 @@
 
 namespace linksight {
 
-enum class BackendKind { serial, openmp };
+enum class BackendKind { serial, openmp, opencl };
 
-/// "serial" / "openmp"; parse throws std::invalid_argument naming the value.
+/// "serial" / "openmp" / "opencl"; parse throws std::invalid_argument naming the value.
 [[nodiscard]] std::string_view to_string(BackendKind kind);
 [[nodiscard]] BackendKind parse_backend(std::string_view name);
+
+/// How the OpenCL back end sums points per node (kernel 2 of Algorithm 2). Both add
+/// the same 64-bit fixed-point integers, so both give identical results.
+enum class ClAccumulation {
+  reduction,  ///< per-work-group partial sums in local memory, then an ordered sum
+  atomic,     ///< the paper's global atomics (int64 fixed point: OpenCL 1.2 has no float atomics)
+};
+
+/// Where and how the OpenCL back end runs.
+struct OpenCLOptions {
+  int platform = -1;             ///< platform index; -1: any
+  std::string device;            ///< case-insensitive substring of the device name; "": first
+  ClAccumulation accumulation = ClAccumulation::reduction;
+  std::size_t work_group_size = 0;  ///< 0: min(256, what the device allows)
+  void validate() const;            ///< throws std::invalid_argument naming the field
+};
+
+/// Thrown when a back end cannot run here (no OpenCL platform or device, a missing
+/// extension). The message says what is missing and how to get it.
+class BackendUnavailable : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 /// Per-node sums of one association pass.
 struct Accumulation {
@@ -30,13 +56,22 @@ class Backend {
  public:
   virtual ~Backend() = default;
   [[nodiscard]] virtual BackendKind kind() const = 0;
-  /// Associates every point with its nearest node (ties: lowest index), writes
-  /// `association[i]`, and accumulates sums and counts. Nodes are given as float xyz.
-  virtual void associate(const PointsView& points, const std::vector<float>& nodes_xyz,
-                         std::int32_t* association, Accumulation& acc) = 0;
+  /// The frame's points: once per frame. The view must stay valid until the next call
+  /// (CPU back ends read it in place; a device back end uploads it here, once).
+  virtual void set_points(const PointsView& points) = 0;
+  /// One pass: associates every point with its nearest node (ties: lowest index) and
+  /// fills sums and counts. Nodes as float xyz.
+  virtual void associate(const std::vector<float>& nodes_xyz, Accumulation& acc) = 0;
+  /// Associations of the last pass, one per point (a device back end reads them back
+  /// only when asked).
+  [[nodiscard]] virtual std::span<const std::int32_t> association() = 0;
+  /// Device time of the kernels since set_points [s]; 0 for CPU back ends.
+  [[nodiscard]] virtual double device_seconds() const { return 0.0; }
 };
 
-/// `threads` is used by parallel back ends only; 0 means one per available core.
-[[nodiscard]] std::unique_ptr<Backend> make_backend(BackendKind kind, int threads);
+/// `threads` is used by OpenMP only (0: one per core); `opencl` by the OpenCL back end.
+/// Throws BackendUnavailable when the back end cannot run on this machine.
+[[nodiscard]] std::unique_ptr<Backend> make_backend(BackendKind kind, int threads,
+                                                    const OpenCLOptions& opencl = {});
 
 }  // namespace linksight

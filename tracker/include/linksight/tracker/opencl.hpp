@@ -1,0 +1,33 @@
+#pragma once
+/// @file OpenCL devices: what is installed, and which back end `auto` picks.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "linksight/tracker/backend.hpp"
+
+namespace linksight {
+
+/// One OpenCL device as the ICD loader reports it.
+struct OpenCLDevice {
+  int platform_index = 0, device_index = 0;
+  std::string platform, name, version, type;  ///< type: GPU, CPU, ACCELERATOR or OTHER
+  unsigned compute_units = 0;
+  std::uint64_t global_memory_bytes = 0, local_memory_bytes = 0;
+  std::size_t max_work_group_size = 0;
+  bool int64_atomics = false;  ///< cl_khr_int64_base_atomics: needed by the back end
+  bool fp64 = false;           ///< cl_khr_fp64: not needed, listed for information
+};
+
+/// Every device of every platform; empty when no OpenCL platform is installed.
+[[nodiscard]] std::vector<OpenCLDevice> opencl_devices();
+
+/// `opencl` when a GPU device with the needed extensions exists, else `openmp`.
+[[nodiscard]] BackendKind auto_backend();
+
+/// Compiles OpenCL C `source` for the device `options` select; throws std::runtime_error
+/// with the compiler's build log on failure (diagnostics for kernel changes).
+void check_opencl_build(const std::string& source, const OpenCLOptions& options = {});
+
+}  // namespace linksight

@@ -1,0 +1,427 @@
+// OpenCL back end (Section V, Algorithm 2). Context, queue and program are made once
+// per back end; buffers only grow; the points go up once per frame; each iteration
+// sends the nodes (36 floats for 12) and reads back the per-node sums and counts (the
+// re-initialization check of Algorithm 2 needs them on the host).
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "linksight/tracker/backend.hpp"
+#include "linksight/tracker/opencl.hpp"
+
+namespace linksight {
+namespace detail {
+extern const char kSomKernelSource[];
+}  // namespace detail
+
+namespace {
+
+constexpr double kFixScale = 4294967296.0;  // must match FIX_SCALE in som.cl
+constexpr std::size_t kMaxGroups = 1024;    // partial-sum rows of the reduction
+
+const char* error_name(cl_int e) {
+  switch (e) {
+    case CL_DEVICE_NOT_FOUND: return "CL_DEVICE_NOT_FOUND";
+    case CL_OUT_OF_RESOURCES: return "CL_OUT_OF_RESOURCES";
+    case CL_OUT_OF_HOST_MEMORY: return "CL_OUT_OF_HOST_MEMORY";
+    case CL_MEM_OBJECT_ALLOCATION_FAILURE: return "CL_MEM_OBJECT_ALLOCATION_FAILURE";
+    case CL_BUILD_PROGRAM_FAILURE: return "CL_BUILD_PROGRAM_FAILURE";
+    case CL_INVALID_VALUE: return "CL_INVALID_VALUE";
+    case CL_INVALID_KERNEL_ARGS: return "CL_INVALID_KERNEL_ARGS";
+    case CL_INVALID_WORK_GROUP_SIZE: return "CL_INVALID_WORK_GROUP_SIZE";
+    case CL_INVALID_BUFFER_SIZE: return "CL_INVALID_BUFFER_SIZE";
+    case CL_INVALID_GLOBAL_WORK_SIZE: return "CL_INVALID_GLOBAL_WORK_SIZE";
+    case -1001: return "CL_PLATFORM_NOT_FOUND_KHR";
+    default: return "CL error";
+  }
+}
+
+void check(cl_int err, const char* what) {
+  if (err != CL_SUCCESS) {
+    throw std::runtime_error(std::string("OpenCL: ") + what + " failed: " + error_name(err) +
+                             " (" + std::to_string(err) + ")");
+  }
+}
+
+// Owning handle for an OpenCL object.
+template <class T, cl_int (*Release)(T)>
+class Handle {
+ public:
+  Handle() = default;
+  explicit Handle(T h) : h_(h) {}
+  Handle(Handle&& o) noexcept : h_(std::exchange(o.h_, nullptr)) {}
+  Handle& operator=(Handle&& o) noexcept {
+    if (this != &o) {
+      reset();
+      h_ = std::exchange(o.h_, nullptr);
+    }
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle() { reset(); }
+  void reset() {
+    if (h_ != nullptr) Release(h_);
+    h_ = nullptr;
+  }
+  [[nodiscard]] T get() const { return h_; }
+
+ private:
+  T h_ = nullptr;
+};
+using Context = Handle<cl_context, clReleaseContext>;
+using Queue = Handle<cl_command_queue, clReleaseCommandQueue>;
+using Program = Handle<cl_program, clReleaseProgram>;
+using Kernel = Handle<cl_kernel, clReleaseKernel>;
+using Buffer = Handle<cl_mem, clReleaseMemObject>;
+using Event = Handle<cl_event, clReleaseEvent>;
+
+std::vector<cl_platform_id> platforms() {
+  cl_uint n = 0;
+  const cl_int err = clGetPlatformIDs(0, nullptr, &n);
+  if (err == -1001 /* CL_PLATFORM_NOT_FOUND_KHR */ || n == 0) return {};
+  check(err, "clGetPlatformIDs");
+  std::vector<cl_platform_id> ids(n);
+  check(clGetPlatformIDs(n, ids.data(), nullptr), "clGetPlatformIDs");
+  return ids;
+}
+
+std::vector<cl_device_id> devices_of(cl_platform_id p) {
+  cl_uint n = 0;
+  if (clGetDeviceIDs(p, CL_DEVICE_TYPE_ALL, 0, nullptr, &n) != CL_SUCCESS || n == 0) return {};
+  std::vector<cl_device_id> ids(n);
+  check(clGetDeviceIDs(p, CL_DEVICE_TYPE_ALL, n, ids.data(), nullptr), "clGetDeviceIDs");
+  return ids;
+}
+
+std::string platform_string(cl_platform_id p, cl_platform_info what) {
+  std::size_t size = 0;
+  check(clGetPlatformInfo(p, what, 0, nullptr, &size), "clGetPlatformInfo");
+  std::string s(size, '\0');
+  check(clGetPlatformInfo(p, what, size, s.data(), nullptr), "clGetPlatformInfo");
+  while (!s.empty() && s.back() == '\0') s.pop_back();
+  return s;
+}
+
+std::string device_string(cl_device_id d, cl_device_info what) {
+  std::size_t size = 0;
+  check(clGetDeviceInfo(d, what, 0, nullptr, &size), "clGetDeviceInfo");
+  std::string s(size, '\0');
+  check(clGetDeviceInfo(d, what, size, s.data(), nullptr), "clGetDeviceInfo");
+  while (!s.empty() && s.back() == '\0') s.pop_back();
+  return s;
+}
+
+template <class T>
+T device_value(cl_device_id d, cl_device_info what) {
+  T v{};
+  check(clGetDeviceInfo(d, what, sizeof v, &v, nullptr), "clGetDeviceInfo");
+  return v;
+}
+
+bool has_extension(const std::string& extensions, const char* name) {
+  const std::string padded = " " + extensions + " ";
+  return padded.find(std::string(" ") + name + " ") != std::string::npos;
+}
+
+OpenCLDevice describe(int pi, int di, cl_platform_id p, cl_device_id d) {
+  OpenCLDevice o;
+  o.platform_index = pi;
+  o.device_index = di;
+  o.platform = platform_string(p, CL_PLATFORM_NAME);
+  o.name = device_string(d, CL_DEVICE_NAME);
+  o.version = device_string(d, CL_DEVICE_VERSION);
+  const auto type = device_value<cl_device_type>(d, CL_DEVICE_TYPE);
+  o.type = (type & CL_DEVICE_TYPE_GPU)           ? "GPU"
+           : (type & CL_DEVICE_TYPE_CPU)         ? "CPU"
+           : (type & CL_DEVICE_TYPE_ACCELERATOR) ? "ACCELERATOR"
+                                                 : "OTHER";
+  o.compute_units = device_value<cl_uint>(d, CL_DEVICE_MAX_COMPUTE_UNITS);
+  o.global_memory_bytes = device_value<cl_ulong>(d, CL_DEVICE_GLOBAL_MEM_SIZE);
+  o.local_memory_bytes = device_value<cl_ulong>(d, CL_DEVICE_LOCAL_MEM_SIZE);
+  o.max_work_group_size = device_value<std::size_t>(d, CL_DEVICE_MAX_WORK_GROUP_SIZE);
+  const std::string ext = device_string(d, CL_DEVICE_EXTENSIONS);
+  o.int64_atomics = has_extension(ext, "cl_khr_int64_base_atomics");
+  o.fp64 = has_extension(ext, "cl_khr_fp64");
+  return o;
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+struct Selected {
+  cl_platform_id platform = nullptr;
+  cl_device_id device = nullptr;
+  OpenCLDevice info;
+};
+
+// The device `options` name: platform index, name substring; GPUs before other devices.
+Selected select_device(const OpenCLOptions& options) {
+  options.validate();
+  const auto ps = platforms();
+  if (ps.empty()) {
+    throw BackendUnavailable(
+        "OpenCL back end: no OpenCL platform found. Install an OpenCL driver (ICD): on "
+        "Debian 'apt-get install pocl-opencl-icd' gives a CPU device; a GPU needs its "
+        "vendor's ICD");
+  }
+  if (options.platform >= static_cast<int>(ps.size())) {
+    throw BackendUnavailable("OpenCL back end: --cl-platform " + std::to_string(options.platform) +
+                             " does not exist (" + std::to_string(ps.size()) +
+                             " platforms; see 'linksight devices')");
+  }
+  std::vector<Selected> candidates;
+  std::string seen;
+  for (int pi = 0; pi < static_cast<int>(ps.size()); ++pi) {
+    if (options.platform >= 0 && pi != options.platform) continue;
+    const auto ds = devices_of(ps[pi]);
+    for (int di = 0; di < static_cast<int>(ds.size()); ++di) {
+      Selected s{ps[pi], ds[di], describe(pi, di, ps[pi], ds[di])};
+      seen += (seen.empty() ? "" : "; ") + s.info.name;
+      if (!options.device.empty() &&
+          lower(s.info.name).find(lower(options.device)) == std::string::npos) {
+        continue;
+      }
+      candidates.push_back(std::move(s));
+    }
+  }
+  if (candidates.empty()) {
+    throw BackendUnavailable(
+        "OpenCL back end: no device " +
+        (options.device.empty() ? std::string("found") : "matches '" + options.device + "'") +
+        (seen.empty() ? std::string(" (the platforms have no devices)") : " (devices: " + seen + ")"));
+  }
+  std::stable_sort(candidates.begin(), candidates.end(), [](const Selected& a, const Selected& b) {
+    return (a.info.type == "GPU") > (b.info.type == "GPU");
+  });
+  return candidates.front();
+}
+
+Program build(cl_context ctx, cl_device_id dev, const char* source, const std::string& device_name) {
+  cl_int err = CL_SUCCESS;
+  Program program(clCreateProgramWithSource(ctx, 1, &source, nullptr, &err));
+  check(err, "clCreateProgramWithSource");
+  err = clBuildProgram(program.get(), 1, &dev, "-cl-std=CL1.2", nullptr, nullptr);
+  if (err != CL_SUCCESS) {
+    std::size_t size = 0;
+    clGetProgramBuildInfo(program.get(), dev, CL_PROGRAM_BUILD_LOG, 0, nullptr, &size);
+    std::string log(size, '\0');
+    clGetProgramBuildInfo(program.get(), dev, CL_PROGRAM_BUILD_LOG, size, log.data(), nullptr);
+    while (!log.empty() && (log.back() == '\0' || log.back() == '\n')) log.pop_back();
+    throw std::runtime_error("OpenCL: kernel build failed on '" + device_name + "' (" +
+                             error_name(err) + "); build log:\n" + log);
+  }
+  return program;
+}
+
+class OpenCLBackend final : public Backend {
+ public:
+  explicit OpenCLBackend(const OpenCLOptions& options) : options_(options) {
+    const Selected sel = select_device(options);
+    info_ = sel.info;
+    device_ = sel.device;
+    if (!info_.int64_atomics) {
+      throw BackendUnavailable("OpenCL back end: device '" + info_.name +
+                               "' lacks cl_khr_int64_base_atomics, which the accumulation "
+                               "kernels need");
+    }
+    cl_int err = CL_SUCCESS;
+    const cl_context_properties props[] = {
+        CL_CONTEXT_PLATFORM, reinterpret_cast<cl_context_properties>(sel.platform), 0};
+    context_ = Context(clCreateContext(props, 1, &device_, nullptr, nullptr, &err));
+    check(err, "clCreateContext");
+    queue_ = Queue(clCreateCommandQueue(context_.get(), device_, CL_QUEUE_PROFILING_ENABLE, &err));
+    check(err, "clCreateCommandQueue");
+    program_ = build(context_.get(), device_, detail::kSomKernelSource, info_.name);
+    for (auto [kernel, name] : {std::pair{&k_associate_, "associate"},
+                                std::pair{&k_atomic_, "accumulate_atomic"},
+                                std::pair{&k_groups_, "accumulate_groups"},
+                                std::pair{&k_partials_, "sum_partials"}}) {
+      *kernel = Kernel(clCreateKernel(program_.get(), name, &err));
+      check(err, "clCreateKernel");
+    }
+    std::size_t kernel_max = 0;
+    check(clGetKernelWorkGroupInfo(k_groups_.get(), device_, CL_KERNEL_WORK_GROUP_SIZE,
+                                   sizeof kernel_max, &kernel_max, nullptr),
+          "clGetKernelWorkGroupInfo");
+    std::size_t assoc_max = 0;
+    check(clGetKernelWorkGroupInfo(k_associate_.get(), device_, CL_KERNEL_WORK_GROUP_SIZE,
+                                   sizeof assoc_max, &assoc_max, nullptr),
+          "clGetKernelWorkGroupInfo");
+    const std::size_t limit = std::min({info_.max_work_group_size, kernel_max, assoc_max});
+    wg_ = options.work_group_size > 0 ? options.work_group_size : std::min<std::size_t>(256, limit);
+    if (wg_ > limit) {
+      throw std::invalid_argument("OpenCLOptions.work_group_size = " + std::to_string(wg_) +
+                                  ": device '" + info_.name + "' allows at most " +
+                                  std::to_string(limit));
+    }
+  }
+
+  BackendKind kind() const override { return BackendKind::opencl; }
+
+  void set_points(const PointsView& p) override {
+    n_ = p.size();
+    device_seconds_ = 0.0;
+    assoc_valid_ = false;
+    if (n_ == 0) return;
+    grow(x_, n_ * sizeof(float), cap_points_);
+    grow(y_, n_ * sizeof(float), cap_points_);
+    grow(z_, n_ * sizeof(float), cap_points_);
+    grow(assoc_buf_, n_ * sizeof(cl_int), cap_points_);
+    cap_points_ = std::max(cap_points_, n_ * sizeof(float));
+    // Blocking writes: the caller's arrays may change once this returns.
+    check(clEnqueueWriteBuffer(queue_.get(), x_.get(), CL_TRUE, 0, n_ * sizeof(float), p.x.data(), 0, nullptr, nullptr), "upload x");
+    check(clEnqueueWriteBuffer(queue_.get(), y_.get(), CL_TRUE, 0, n_ * sizeof(float), p.y.data(), 0, nullptr, nullptr), "upload y");
+    check(clEnqueueWriteBuffer(queue_.get(), z_.get(), CL_TRUE, 0, n_ * sizeof(float), p.z.data(), 0, nullptr, nullptr), "upload z");
+  }
+
+  void associate(const std::vector<float>& q, Accumulation& acc) override {
+    const int m = static_cast<int>(q.size() / 3);
+    acc.reset(m);
+    assoc_valid_ = false;
+    if (n_ == 0) return;
+    const std::size_t m4 = 4 * static_cast<std::size_t>(m);
+    if (m4 * sizeof(cl_long) > info_.local_memory_bytes) {
+      throw std::runtime_error("OpenCL: " + std::to_string(m) + " nodes do not fit the local memory of '" + info_.name + "'");
+    }
+    std::size_t cap_q = q_bytes_, cap_acc = acc_bytes_, cap_partial = partial_bytes_;
+    grow(q_buf_, q.size() * sizeof(float), cap_q);
+    grow(acc_buf_, m4 * sizeof(cl_long), cap_acc);
+    q_bytes_ = std::max(q_bytes_, q.size() * sizeof(float));
+    acc_bytes_ = std::max(acc_bytes_, m4 * sizeof(cl_long));
+    const cl_uint n = static_cast<cl_uint>(n_);
+    const std::size_t global = (n_ + wg_ - 1) / wg_ * wg_;
+
+    check(clEnqueueWriteBuffer(queue_.get(), q_buf_.get(), CL_FALSE, 0, q.size() * sizeof(float), q.data(), 0, nullptr, nullptr), "upload nodes");
+    set_args(k_associate_.get(), x_.get(), y_.get(), z_.get(), n, q_buf_.get(), static_cast<cl_int>(m), assoc_buf_.get());
+    run(k_associate_.get(), global, wg_);  // kernel 1
+    const cl_long zero = 0;
+    check(clEnqueueFillBuffer(queue_.get(), acc_buf_.get(), &zero, sizeof zero, 0, m4 * sizeof(cl_long), 0, nullptr, nullptr), "clear sums");
+    if (options_.accumulation == ClAccumulation::atomic) {
+      set_args(k_atomic_.get(), x_.get(), y_.get(), z_.get(), assoc_buf_.get(), n, acc_buf_.get());
+      run(k_atomic_.get(), global, wg_);  // kernel 2, paper's form
+    } else {
+      const std::size_t groups = std::min(kMaxGroups, global / wg_);
+      grow(partial_buf_, groups * m4 * sizeof(cl_long), cap_partial);
+      partial_bytes_ = std::max(partial_bytes_, groups * m4 * sizeof(cl_long));
+      set_args(k_groups_.get(), x_.get(), y_.get(), z_.get(), assoc_buf_.get(), n, static_cast<cl_int>(m));
+      check(clSetKernelArg(k_groups_.get(), 6, m4 * sizeof(cl_long), nullptr), "clSetKernelArg local");
+      const cl_mem partial = partial_buf_.get();
+      check(clSetKernelArg(k_groups_.get(), 7, sizeof partial, &partial), "clSetKernelArg");
+      run(k_groups_.get(), groups * wg_, wg_);  // kernel 2, per-group partials
+      set_args(k_partials_.get(), partial_buf_.get(), static_cast<cl_uint>(groups), static_cast<cl_int>(m4), acc_buf_.get());
+      run(k_partials_.get(), (m4 + wg_ - 1) / wg_ * wg_, wg_);
+    }
+    fixed_.resize(m4);
+    check(clEnqueueReadBuffer(queue_.get(), acc_buf_.get(), CL_TRUE, 0, m4 * sizeof(cl_long), fixed_.data(), 0, nullptr, nullptr), "read sums");
+    collect_profile();
+    for (int j = 0; j < m; ++j) {
+      for (int a = 0; a < 3; ++a) acc.sum[3 * j + a] = static_cast<double>(fixed_[4 * j + a]) / kFixScale;
+      acc.count[j] = fixed_[4 * j + 3];
+    }
+  }
+
+  std::span<const std::int32_t> association() override {
+    if (!assoc_valid_) {
+      assoc_host_.resize(n_);
+      if (n_ > 0) {
+        check(clEnqueueReadBuffer(queue_.get(), assoc_buf_.get(), CL_TRUE, 0, n_ * sizeof(cl_int), assoc_host_.data(), 0, nullptr, nullptr), "read associations");
+      }
+      assoc_valid_ = true;
+    }
+    return assoc_host_;
+  }
+
+  double device_seconds() const override { return device_seconds_; }
+
+ private:
+  // Reallocates `buf` when `bytes` exceeds `capacity` (buffers only grow).
+  void grow(Buffer& buf, std::size_t bytes, std::size_t capacity) {
+    if (buf.get() != nullptr && bytes <= capacity) return;
+    cl_int err = CL_SUCCESS;
+    buf = Buffer(clCreateBuffer(context_.get(), CL_MEM_READ_WRITE, std::max<std::size_t>(bytes, 64), nullptr, &err));
+    check(err, "clCreateBuffer");
+  }
+
+  template <class... Args>
+  void set_args(cl_kernel k, const Args&... args) {
+    cl_uint i = 0;
+    (check(clSetKernelArg(k, i++, sizeof(args), &args), "clSetKernelArg"), ...);
+  }
+
+  void run(cl_kernel k, std::size_t global, std::size_t local) {
+    cl_event e = nullptr;
+    check(clEnqueueNDRangeKernel(queue_.get(), k, 1, nullptr, &global, &local, 0, nullptr, &e), "clEnqueueNDRangeKernel");
+    events_.emplace_back(e);
+  }
+
+  void collect_profile() {
+    for (const Event& e : events_) {
+      cl_ulong start = 0, end = 0;
+      if (clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr) == CL_SUCCESS &&
+          clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr) == CL_SUCCESS && end > start) {
+        device_seconds_ += static_cast<double>(end - start) * 1e-9;
+      }
+    }
+    events_.clear();
+  }
+
+  OpenCLOptions options_;
+  OpenCLDevice info_;
+  cl_device_id device_ = nullptr;
+  Context context_;
+  Queue queue_;
+  Program program_;
+  Kernel k_associate_, k_atomic_, k_groups_, k_partials_;
+  std::size_t wg_ = 0;
+  Buffer x_, y_, z_, assoc_buf_, q_buf_, acc_buf_, partial_buf_;
+  std::size_t cap_points_ = 0, q_bytes_ = 0, acc_bytes_ = 0, partial_bytes_ = 0;
+  std::size_t n_ = 0;
+  std::vector<cl_long> fixed_;
+  std::vector<std::int32_t> assoc_host_;
+  bool assoc_valid_ = false;
+  std::vector<Event> events_;
+  double device_seconds_ = 0.0;
+};
+
+}  // namespace
+
+std::unique_ptr<Backend> make_opencl_backend(const OpenCLOptions& options) {
+  return std::make_unique<OpenCLBackend>(options);
+}
+
+std::vector<OpenCLDevice> opencl_devices() {
+  std::vector<OpenCLDevice> out;
+  const auto ps = platforms();
+  for (int pi = 0; pi < static_cast<int>(ps.size()); ++pi) {
+    const auto ds = devices_of(ps[pi]);
+    for (int di = 0; di < static_cast<int>(ds.size()); ++di) out.push_back(describe(pi, di, ps[pi], ds[di]));
+  }
+  return out;
+}
+
+BackendKind auto_backend() {
+  for (const OpenCLDevice& d : opencl_devices()) {
+    if (d.type == "GPU" && d.int64_atomics) return BackendKind::opencl;
+  }
+  return BackendKind::openmp;
+}
+
+void check_opencl_build(const std::string& source, const OpenCLOptions& options) {
+  const Selected sel = select_device(options);
+  cl_int err = CL_SUCCESS;
+  const cl_context_properties props[] = {CL_CONTEXT_PLATFORM, reinterpret_cast<cl_context_properties>(sel.platform), 0};
+  Context ctx(clCreateContext(props, 1, &sel.device, nullptr, nullptr, &err));
+  check(err, "clCreateContext");
+  (void)build(ctx.get(), sel.device, source.c_str(), sel.info.name);
+}
+
+}  // namespace linksight
