@@ -1,5 +1,6 @@
 // linksight track: clouds in, nodes.csv + frames.csv + summary.json out.
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -12,6 +13,7 @@
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
+#include "linksight/tracker/opencl.hpp"
 #include "linksight/tracker/tracker.hpp"
 
 namespace linksight::cli {
@@ -25,6 +27,10 @@ struct TrackOptions {
   std::string init = "pca";
   std::string som_init = "straight-line";
   std::string backend = "serial";
+  std::string cl_device;
+  int cl_platform = -1;
+  std::string cl_accumulation = "reduction";
+  std::size_t cl_work_group = 0;
   int threads = 0;
   int nodes = 12;
   int iterations = 4;
@@ -56,7 +62,31 @@ int run_track(const TrackOptions& o) {
     p.som_init = SomInit::random_sample;
   else
     throw std::invalid_argument("--som-init: unknown value '" + o.som_init + "'");
-  p.backend = parse_backend(o.backend);
+  if (o.backend == "auto") {
+    p.backend = auto_backend();
+    if (!o.quiet) {
+      std::cerr << "linksight: --backend auto picked " << to_string(p.backend)
+                << (p.backend == BackendKind::opencl ? " (a GPU OpenCL device is present)\n"
+                                                     : " (no GPU OpenCL device found)\n");
+    }
+  } else {
+    p.backend = parse_backend(o.backend);
+  }
+  // The environment names the device only when the flag does not.
+  p.opencl.device = o.cl_device;
+  if (p.opencl.device.empty()) {
+    if (const char* env = std::getenv("LINKSIGHT_CL_DEVICE")) p.opencl.device = env;
+  }
+  p.opencl.platform = o.cl_platform;
+  if (o.cl_accumulation == "reduction") {
+    p.opencl.accumulation = ClAccumulation::reduction;
+  } else if (o.cl_accumulation == "atomic") {
+    p.opencl.accumulation = ClAccumulation::atomic;
+  } else {
+    throw std::invalid_argument("--cl-accumulation: unknown value '" + o.cl_accumulation +
+                                "' (reduction or atomic)");
+  }
+  p.opencl.work_group_size = o.cl_work_group;
   p.threads = o.threads;
   p.nodes = o.nodes;
   p.iterations = o.iterations;
@@ -163,6 +193,8 @@ int run_track(const TrackOptions& o) {
        {{"mode", to_string(p.mode)},
         {"init", o.init},
         {"backend", to_string(p.backend)},
+        {"cl_device", p.opencl.device},
+        {"cl_accumulation", o.cl_accumulation},
         {"threads", p.threads},
         {"nodes", p.nodes},
         {"iterations", p.iterations},
@@ -198,7 +230,18 @@ Runner add_track(CLI::App& app) {
   app.add_option("--som-init", o->som_init,
                  "init of accelerated-som mode: straight-line | random-sample")
       ->capture_default_str();
-  app.add_option("--backend", o->backend, "serial | openmp")->capture_default_str();
+  app.add_option("--backend", o->backend,
+                 "serial | openmp | opencl | auto (opencl if a GPU OpenCL device exists, else openmp)")
+      ->capture_default_str();
+  app.add_option("--cl-device", o->cl_device,
+                 "opencl: case-insensitive substring of the device name (default: env "
+                 "LINKSIGHT_CL_DEVICE, else the first GPU, else the first device); see 'linksight devices'");
+  app.add_option("--cl-platform", o->cl_platform, "opencl: platform index (-1: any)")->capture_default_str();
+  app.add_option("--cl-accumulation", o->cl_accumulation,
+                 "opencl: reduction (per-work-group partial sums) | atomic (the paper's global atomics)")
+      ->capture_default_str();
+  app.add_option("--cl-work-group", o->cl_work_group, "opencl: work-group size (0: auto)")
+      ->capture_default_str();
   app.add_option("--threads", o->threads, "threads of parallel back ends (0: one per core)")
       ->capture_default_str();
   app.add_option("--nodes", o->nodes, "reference vectors M+1")->capture_default_str();

@@ -14,5 +14,6 @@ inline constexpr int kExitBadInput = 2;
 using Runner = std::function<int()>;
 Runner add_track(CLI::App& app);
 Runner add_synth(CLI::App& app);
+Runner add_devices(CLI::App& app);
 
 }  // namespace linksight::cli

@@ -4,6 +4,7 @@
 
 #include "commands.hpp"
 #include "linksight/io/error.hpp"
+#include "linksight/tracker/backend.hpp"
 
 int main(int argc, char** argv) {
   using namespace linksight::cli;
@@ -19,6 +20,9 @@ int main(int argc, char** argv) {
     CLI::App* synth = app.add_subcommand(
         "synth", "Write a synthetic cloud sequence of the link with its true nodes.");
     runners[synth] = add_synth(*synth);
+    CLI::App* devices = app.add_subcommand(
+        "devices", "List every OpenCL platform and device, and what the opencl back end needs.");
+    runners[devices] = add_devices(*devices);
   }
   try {
     app.parse(argc, argv);
@@ -36,6 +40,9 @@ int main(int argc, char** argv) {
   try {
     for (const CLI::App* sub : app.get_subcommands()) return runners.at(sub)();
   } catch (const linksight::io::InputError& e) {
+    std::cerr << "linksight: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const linksight::BackendUnavailable& e) {
     std::cerr << "linksight: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const std::invalid_argument& e) {

@@ -3,6 +3,7 @@
 #include <sys/wait.h>
 
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include "linksight/io/depth_png.hpp"
@@ -18,10 +19,11 @@ struct CliRun {
   std::string out, err;
 };
 
-CliRun run(const std::string& args, const fs::path& dir) {
+// `env`: assignments for the command's environment, e.g. "OCL_ICD_VENDORS=/x".
+CliRun run(const std::string& args, const fs::path& dir, const std::string& env = "") {
   const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string cmd =
-      std::string(LINKSIGHT_EXE) + " " + args + " >" + out.string() + " 2>" + err.string();
+  const std::string cmd = (env.empty() ? "" : "env " + env + " ") + std::string(LINKSIGHT_EXE) +
+                          " " + args + " >" + out.string() + " 2>" + err.string();
   const int status = std::system(cmd.c_str());
   CliRun r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -116,6 +118,70 @@ TEST_F(Cli, SameResultWhateverTheThreadCount) {
   const std::string serial = nodes_csv("--backend serial", "s");
   EXPECT_EQ(serial, nodes_csv("--backend openmp --threads 1", "o1"));
   EXPECT_EQ(serial, nodes_csv("--backend openmp --threads 2", "o2"));
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+TEST_F(Cli, OpenCLGivesTheSerialNodesWithEitherAccumulation) {
+  const fs::path seq = good_sequence(3);
+  for (const char* extra : {"--backend serial", "--backend opencl --cl-accumulation reduction",
+                            "--backend opencl --cl-accumulation atomic --cl-work-group 64"}) {
+    const CliRun r = run("track --quiet --input " + seq.string() + " " + extra + " --out " +
+                             (dir / std::to_string(std::hash<std::string>{}(extra))).string(),
+                         dir);
+    ASSERT_EQ(r.code, 0) << extra << ": " << r.err;
+  }
+  const std::string serial = slurp(dir / std::to_string(std::hash<std::string>{}("--backend serial")) / "nodes.csv");
+  EXPECT_EQ(serial, slurp(dir / std::to_string(std::hash<std::string>{}("--backend opencl --cl-accumulation reduction")) / "nodes.csv"));
+  EXPECT_EQ(serial, slurp(dir / std::to_string(std::hash<std::string>{}("--backend opencl --cl-accumulation atomic --cl-work-group 64")) / "nodes.csv"));
+}
+
+TEST_F(Cli, DevicesListsThePlatformAndWhatAutoPicks) {
+  const CliRun r = run("devices", dir);
+  EXPECT_EQ(r.code, 0) << r.err;
+  for (const char* what : {"platform 0:", "device 0:", "version:", "compute units:", "global memory:",
+                           "cl_khr_int64_base_atomics:", "--backend auto picks:"}) {
+    EXPECT_NE(r.out.find(what), std::string::npos) << what << "\n" << r.out;
+  }
+}
+
+// A machine without any OpenCL driver: the ICD loader finds no platform.
+TEST_F(Cli, OpenCLWithoutAPlatformSaysHowToGetOne) {
+  const fs::path seq = good_sequence(1);
+  fs::create_directories(dir / "no_icds");
+  const std::string env = "OCL_ICD_VENDORS=" + (dir / "no_icds").string();
+  const CliRun r = run("track --input " + seq.string() + " --backend opencl --out " + out.string(), dir, env);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no OpenCL platform found"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("pocl-opencl-icd"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+  // auto never fails for want of OpenCL: it says what it picked.
+  const CliRun a = run("track --input " + seq.string() + " --backend auto --out " + out.string(), dir, env);
+  EXPECT_EQ(a.code, 0) << a.err;
+  EXPECT_NE(a.err.find("--backend auto picked openmp"), std::string::npos) << a.err;
+  const CliRun d = run("devices", dir, env);
+  EXPECT_EQ(d.code, 0);
+  EXPECT_NE(d.out.find("no OpenCL platform found"), std::string::npos);
+}
+
+TEST_F(Cli, DeviceFromTheEnvironmentUnlessTheFlagSaysOtherwise) {
+  const fs::path seq = good_sequence(1);
+  const std::string args = "track --input " + seq.string() + " --backend opencl --out " + out.string();
+  const CliRun r = run(args, dir, "LINKSIGHT_CL_DEVICE=no-such-gpu");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no device matches 'no-such-gpu'"), std::string::npos) << r.err;
+  const CliRun flag = run(args + " --cl-device pthread", dir, "LINKSIGHT_CL_DEVICE=no-such-gpu");
+  EXPECT_EQ(flag.code, 0) << flag.err;
+  fs::remove_all(out);
+  expect_bad_input("--input " + seq.string() + " --backend opencl --cl-accumulation fast", "'fast'",
+                   "reduction or atomic");
+  expect_bad_input("--input " + seq.string() + " --backend opencl --cl-platform 7", "--cl-platform 7",
+                   "does not exist");
 }
 
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
