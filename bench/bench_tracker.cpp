@@ -1,6 +1,6 @@
 // Tracker throughput: paper mode, 12 nodes, 4 iterations, ms per frame over N points,
 // for every back end. `--smoke` registers one tiny size only (ctest runs it untimed).
-//   linksight_bench --benchmark_filter=openmp     # one back end
+//   linksight_bench --benchmark_filter=opencl     # one back end (the engine is in the name)
 #include <benchmark/benchmark.h>
 
 #include <cstring>
@@ -32,23 +32,31 @@ Cloud make_cloud(std::size_t n) {
   return out;
 }
 
-void BM_TrackerStep(benchmark::State& state, BackendKind backend) {
+// End-to-end ms/frame (for OpenCL: upload + kernels + read-backs) and, for OpenCL, the
+// kernels' own device time per frame from profiling events ("kernel_ms").
+void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation accumulation) {
   const Cloud cloud = make_cloud(static_cast<std::size_t>(state.range(0)));
   TrackerParams p;
   p.backend = backend;
+  p.opencl.accumulation = accumulation;
   p.nodes = 12;
   p.iterations = 4;
   p.compute_sdf = false;  // the metric is evaluation, not tracking
   Tracker tracker(p);
-  (void)tracker.step(cloud);  // initialization is not the steady state
+  (void)tracker.step(cloud);  // initialization (and kernel build) is not the steady state
   std::int64_t reinits = 0;
+  double device_s = 0.0;
   for (auto _ : state) {
     FrameResult r = tracker.step(cloud);
     reinits += r.reinit;
+    device_s += r.device_time_s;
     benchmark::DoNotOptimize(r.nodes.data());
   }
   state.counters["points"] = static_cast<double>(cloud.size());
   state.counters["reinit"] = static_cast<double>(reinits);  // 0 in the steady state
+  if (backend == BackendKind::opencl) {
+    state.counters["kernel_ms"] = 1e3 * device_s / static_cast<double>(state.iterations());
+  }
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(cloud.size()));
 }
 
@@ -67,9 +75,18 @@ int main(int argc, char** argv) {
   const std::vector<std::int64_t> sizes =
       smoke ? std::vector<std::int64_t>{300}
             : std::vector<std::int64_t>{5000, 20000, 100000, 300000};
-  for (BackendKind b : {BackendKind::serial, BackendKind::openmp}) {
-    auto* bm = benchmark::RegisterBenchmark(("tracker_step/" + std::string(to_string(b))).c_str(),
-                                            BM_TrackerStep, b);
+  struct Engine {
+    const char* name;
+    BackendKind kind;
+    ClAccumulation accumulation;
+  };
+  for (const Engine& e :
+       {Engine{"serial", BackendKind::serial, ClAccumulation::reduction},
+        Engine{"openmp", BackendKind::openmp, ClAccumulation::reduction},
+        Engine{"opencl_reduction", BackendKind::opencl, ClAccumulation::reduction},
+        Engine{"opencl_atomic", BackendKind::opencl, ClAccumulation::atomic}}) {
+    auto* bm = benchmark::RegisterBenchmark((std::string("tracker_step/") + e.name).c_str(),
+                                            BM_TrackerStep, e.kind, e.accumulation);
     for (auto n : sizes) bm->Arg(n);
     bm->Unit(benchmark::kMillisecond)->UseRealTime();
   }

@@ -10,8 +10,9 @@ namespace {
 int run_devices() {
   const auto devices = opencl_devices();
   if (devices.empty()) {
-    std::cout << "no OpenCL platform found. Install an OpenCL driver (ICD): on Debian "
-                 "'apt-get install pocl-opencl-icd' gives a CPU device; a GPU needs its vendor's ICD.\n";
+    std::cout
+        << "no OpenCL platform found. Install an OpenCL driver (ICD): on Debian "
+           "'apt-get install pocl-opencl-icd' gives a CPU device; a GPU needs its vendor's ICD.\n";
     return kExitOk;
   }
   int last_platform = -1;
@@ -26,8 +27,8 @@ int run_devices() {
               << "    global memory:  " << d.global_memory_bytes / (1024 * 1024) << " MiB\n"
               << "    local memory:   " << d.local_memory_bytes / 1024 << " KiB\n"
               << "    max work group: " << d.max_work_group_size << "\n"
-              << "    cl_khr_int64_base_atomics: " << (d.int64_atomics ? "yes" : "NO (opencl back end unusable)")
-              << "\n"
+              << "    cl_khr_int64_base_atomics: "
+              << (d.int64_atomics ? "yes" : "NO (opencl back end unusable)") << "\n"
               << "    cl_khr_fp64:    " << (d.fp64 ? "yes" : "no") << " (not needed)\n";
   }
   std::cout << "--backend auto picks: " << to_string(auto_backend()) << "\n";
@@ -36,6 +37,8 @@ int run_devices() {
 
 }  // namespace
 
-Runner add_devices(CLI::App&) { return [] { return run_devices(); }; }
+Runner add_devices(CLI::App&) {
+  return [] { return run_devices(); };
+}
 
 }  // namespace linksight::cli

@@ -134,7 +134,7 @@ int run_track(const TrackOptions& o) {
   std::ostream& frames_csv = staged.open(fs::path(o.out) / "frames.csv");
   nodes_csv << "frame,node,x_m,y_m,z_m,n_points\n";
   frames_csv << "frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm,n_non_finite,"
-                "init_reason,lost_reason,file\n";
+                "init_reason,lost_reason,device_ms,file\n";
 
   Tracker tracker(p);
   std::size_t lost = 0, reinits = 0;
@@ -178,7 +178,7 @@ int run_track(const TrackOptions& o) {
                << (r.lost ? 1 : 0) << ',' << fmt(r.time_s * 1e3, 4) << ','
                << fmt(r.sdf_error * 1e3, 4) << ',' << r.n_non_finite << ','
                << to_string(r.init_reason) << ',' << to_string(r.lost_reason) << ','
-               << path.filename().string() << '\n';
+               << fmt(r.device_time_s * 1e3, 4) << ',' << path.filename().string() << '\n';
   }
   const double mean_ms = frames.empty() ? 0 : time_sum * 1e3 / static_cast<double>(frames.size());
   const double mean_sdf_mm = sdf_n ? sdf_sum * 1e3 / static_cast<double>(sdf_n) : std::nan("");
@@ -230,15 +230,19 @@ Runner add_track(CLI::App& app) {
   app.add_option("--som-init", o->som_init,
                  "init of accelerated-som mode: straight-line | random-sample")
       ->capture_default_str();
-  app.add_option("--backend", o->backend,
-                 "serial | openmp | opencl | auto (opencl if a GPU OpenCL device exists, else openmp)")
+  app.add_option(
+         "--backend", o->backend,
+         "serial | openmp | opencl | auto (opencl if a GPU OpenCL device exists, else openmp)")
       ->capture_default_str();
-  app.add_option("--cl-device", o->cl_device,
-                 "opencl: case-insensitive substring of the device name (default: env "
-                 "LINKSIGHT_CL_DEVICE, else the first GPU, else the first device); see 'linksight devices'");
-  app.add_option("--cl-platform", o->cl_platform, "opencl: platform index (-1: any)")->capture_default_str();
-  app.add_option("--cl-accumulation", o->cl_accumulation,
-                 "opencl: reduction (per-work-group partial sums) | atomic (the paper's global atomics)")
+  app.add_option(
+      "--cl-device", o->cl_device,
+      "opencl: case-insensitive substring of the device name (default: env "
+      "LINKSIGHT_CL_DEVICE, else the first GPU, else the first device); see 'linksight devices'");
+  app.add_option("--cl-platform", o->cl_platform, "opencl: platform index (-1: any)")
+      ->capture_default_str();
+  app.add_option(
+         "--cl-accumulation", o->cl_accumulation,
+         "opencl: reduction (per-work-group partial sums) | atomic (the paper's global atomics)")
       ->capture_default_str();
   app.add_option("--cl-work-group", o->cl_work_group, "opencl: work-group size (0: auto)")
       ->capture_default_str();

@@ -63,7 +63,8 @@ inline std::vector<BackendCase> all_backends() {
 }
 inline std::string case_name(const BackendCase& c) {
   std::string n(to_string(c.kind));
-  if (c.kind == BackendKind::opencl) n += c.accumulation == ClAccumulation::atomic ? "_atomic" : "_reduction";
+  if (c.kind == BackendKind::opencl)
+    n += c.accumulation == ClAccumulation::atomic ? "_atomic" : "_reduction";
   return n;
 }
 /// gtest case name of a back-end parameter.

@@ -136,16 +136,24 @@ TEST_F(Cli, OpenCLGivesTheSerialNodesWithEitherAccumulation) {
                          dir);
     ASSERT_EQ(r.code, 0) << extra << ": " << r.err;
   }
-  const std::string serial = slurp(dir / std::to_string(std::hash<std::string>{}("--backend serial")) / "nodes.csv");
-  EXPECT_EQ(serial, slurp(dir / std::to_string(std::hash<std::string>{}("--backend opencl --cl-accumulation reduction")) / "nodes.csv"));
-  EXPECT_EQ(serial, slurp(dir / std::to_string(std::hash<std::string>{}("--backend opencl --cl-accumulation atomic --cl-work-group 64")) / "nodes.csv"));
+  const std::string serial =
+      slurp(dir / std::to_string(std::hash<std::string>{}("--backend serial")) / "nodes.csv");
+  EXPECT_EQ(serial, slurp(dir /
+                          std::to_string(std::hash<std::string>{}(
+                              "--backend opencl --cl-accumulation reduction")) /
+                          "nodes.csv"));
+  EXPECT_EQ(serial, slurp(dir /
+                          std::to_string(std::hash<std::string>{}(
+                              "--backend opencl --cl-accumulation atomic --cl-work-group 64")) /
+                          "nodes.csv"));
 }
 
 TEST_F(Cli, DevicesListsThePlatformAndWhatAutoPicks) {
   const CliRun r = run("devices", dir);
   EXPECT_EQ(r.code, 0) << r.err;
-  for (const char* what : {"platform 0:", "device 0:", "version:", "compute units:", "global memory:",
-                           "cl_khr_int64_base_atomics:", "--backend auto picks:"}) {
+  for (const char* what :
+       {"platform 0:", "device 0:", "version:", "compute units:", "global memory:",
+        "cl_khr_int64_base_atomics:", "--backend auto picks:"}) {
     EXPECT_NE(r.out.find(what), std::string::npos) << what << "\n" << r.out;
   }
 }
@@ -155,13 +163,15 @@ TEST_F(Cli, OpenCLWithoutAPlatformSaysHowToGetOne) {
   const fs::path seq = good_sequence(1);
   fs::create_directories(dir / "no_icds");
   const std::string env = "OCL_ICD_VENDORS=" + (dir / "no_icds").string();
-  const CliRun r = run("track --input " + seq.string() + " --backend opencl --out " + out.string(), dir, env);
+  const CliRun r =
+      run("track --input " + seq.string() + " --backend opencl --out " + out.string(), dir, env);
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("no OpenCL platform found"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("pocl-opencl-icd"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(out));
   // auto never fails for want of OpenCL: it says what it picked.
-  const CliRun a = run("track --input " + seq.string() + " --backend auto --out " + out.string(), dir, env);
+  const CliRun a =
+      run("track --input " + seq.string() + " --backend auto --out " + out.string(), dir, env);
   EXPECT_EQ(a.code, 0) << a.err;
   EXPECT_NE(a.err.find("--backend auto picked openmp"), std::string::npos) << a.err;
   const CliRun d = run("devices", dir, env);
@@ -171,7 +181,8 @@ TEST_F(Cli, OpenCLWithoutAPlatformSaysHowToGetOne) {
 
 TEST_F(Cli, DeviceFromTheEnvironmentUnlessTheFlagSaysOtherwise) {
   const fs::path seq = good_sequence(1);
-  const std::string args = "track --input " + seq.string() + " --backend opencl --out " + out.string();
+  const std::string args =
+      "track --input " + seq.string() + " --backend opencl --out " + out.string();
   const CliRun r = run(args, dir, "LINKSIGHT_CL_DEVICE=no-such-gpu");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("no device matches 'no-such-gpu'"), std::string::npos) << r.err;
@@ -180,8 +191,8 @@ TEST_F(Cli, DeviceFromTheEnvironmentUnlessTheFlagSaysOtherwise) {
   fs::remove_all(out);
   expect_bad_input("--input " + seq.string() + " --backend opencl --cl-accumulation fast", "'fast'",
                    "reduction or atomic");
-  expect_bad_input("--input " + seq.string() + " --backend opencl --cl-platform 7", "--cl-platform 7",
-                   "does not exist");
+  expect_bad_input("--input " + seq.string() + " --backend opencl --cl-platform 7",
+                   "--cl-platform 7", "does not exist");
 }
 
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
@@ -235,7 +246,7 @@ TEST_F(Cli, SomeNonFinitePointsAreDroppedAndCounted) {
   std::string line;
   std::getline(frames, line);
   std::getline(frames, line);
-  EXPECT_NE(line.find(",2,first_frame,none,some.ply"), std::string::npos) << line;
+  EXPECT_NE(line.find(",2,first_frame,none,0.0000,some.ply"), std::string::npos) << line;
 }
 
 TEST_F(Cli, EmptyDirectory) {

@@ -73,7 +73,8 @@ TEST_P(BackendEquivalence, OneAssociationPassMatchesSerial) {
     int best = 0;
     float best_d = std::numeric_limits<float>::infinity();
     for (int j = 0; j < m; ++j) {
-      const float dx = pts.x[i] - q[3 * j], dy = pts.y[i] - q[3 * j + 1], dz = pts.z[i] - q[3 * j + 2];
+      const float dx = pts.x[i] - q[3 * j], dy = pts.y[i] - q[3 * j + 1],
+                  dz = pts.z[i] - q[3 * j + 2];
       const float d = dx * dx + dy * dy + dz * dz;
       if (d < best_d) {
         best_d = d;
@@ -93,7 +94,8 @@ TEST_P(BackendEquivalence, TinyAndHugeClouds) {
   for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{11}, std::size_t{1000000}}) {
     ASSERT_GE(big.size(), n);
     Cloud c;
-    for (std::size_t i = 0; i < n; ++i) c.push_back(big.point(i * (big.size() / std::max<std::size_t>(n, 1))));
+    for (std::size_t i = 0; i < n; ++i)
+      c.push_back(big.point(i * (big.size() / std::max<std::size_t>(n, 1))));
     const test::Soa pts(c);
     const Pass ref = one_pass(*serial, pts.view(), q);
     const Pass o = one_pass(*other, pts.view(), q);
@@ -122,7 +124,8 @@ TEST_P(BackendEquivalence, TrackerSequenceMatchesSerialOn20kPoints) {
     ASSERT_EQ(ar.size(), ao.size());
     EXPECT_TRUE(std::equal(ar.begin(), ar.end(), ao.begin()));
     for (std::size_t j = 0; j < r.nodes.size(); ++j) {
-      EXPECT_LT((r.nodes[j] - o.nodes[j]).norm(), kBackendTolerance) << "frame " << f << " node " << j;
+      EXPECT_LT((r.nodes[j] - o.nodes[j]).norm(), kBackendTolerance)
+          << "frame " << f << " node " << j;
     }
   }
 }

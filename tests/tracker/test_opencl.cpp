@@ -41,8 +41,9 @@ TEST(OpenCL, ListsAtLeastOneDeviceWithWhatTheBackEndNeeds) {
     usable |= d.int64_atomics;
   }
   EXPECT_TRUE(usable);
-  const bool gpu = std::any_of(devices.begin(), devices.end(),
-                               [](const OpenCLDevice& d) { return d.type == "GPU" && d.int64_atomics; });
+  const bool gpu = std::any_of(devices.begin(), devices.end(), [](const OpenCLDevice& d) {
+    return d.type == "GPU" && d.int64_atomics;
+  });
   EXPECT_EQ(auto_backend(), gpu ? BackendKind::opencl : BackendKind::openmp);
 }
 
@@ -99,7 +100,8 @@ TEST(OpenCL, TwoTrackersAliveAtOnce) {
 }
 
 TEST(OpenCL, BuildFailureCarriesTheBuildLog) {
-  const std::string e = error_of([] { check_opencl_build("kernel void k(global int* a) { a[0] = undeclared_name; }"); });
+  const std::string e = error_of(
+      [] { check_opencl_build("kernel void k(global int* a) { a[0] = undeclared_name; }"); });
   EXPECT_NE(e.find("kernel build failed"), std::string::npos) << e;
   EXPECT_NE(e.find("undeclared_name"), std::string::npos) << e;  // the compiler's own words
   EXPECT_NO_THROW(check_opencl_build("kernel void k(global int* a) { a[0] = 1; }"));

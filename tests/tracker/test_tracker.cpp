@@ -110,12 +110,12 @@ std::string shape_case_name(const ::testing::TestParamInfo<TrackerShapes::ParamT
          kShape[static_cast<int>(std::get<1>(p.param))];
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    BackendsAndShapes, TrackerShapes,
-    ::testing::Combine(::testing::ValuesIn(test::all_backends()),
-                       ::testing::Values(ChainShape::straight, ChainShape::c_shape,
-                                         ChainShape::s_shape)),
-    shape_case_name);
+INSTANTIATE_TEST_SUITE_P(BackendsAndShapes, TrackerShapes,
+                         ::testing::Combine(::testing::ValuesIn(test::all_backends()),
+                                            ::testing::Values(ChainShape::straight,
+                                                              ChainShape::c_shape,
+                                                              ChainShape::s_shape)),
+                         shape_case_name);
 
 // Eq. 9's form samples at constant x. For moderate bends seen broadside that is enough
 // for the SOM to converge in order.

@@ -27,25 +27,37 @@ constexpr std::size_t kMaxGroups = 1024;    // partial-sum rows of the reduction
 
 const char* error_name(cl_int e) {
   switch (e) {
-    case CL_DEVICE_NOT_FOUND: return "CL_DEVICE_NOT_FOUND";
-    case CL_OUT_OF_RESOURCES: return "CL_OUT_OF_RESOURCES";
-    case CL_OUT_OF_HOST_MEMORY: return "CL_OUT_OF_HOST_MEMORY";
-    case CL_MEM_OBJECT_ALLOCATION_FAILURE: return "CL_MEM_OBJECT_ALLOCATION_FAILURE";
-    case CL_BUILD_PROGRAM_FAILURE: return "CL_BUILD_PROGRAM_FAILURE";
-    case CL_INVALID_VALUE: return "CL_INVALID_VALUE";
-    case CL_INVALID_KERNEL_ARGS: return "CL_INVALID_KERNEL_ARGS";
-    case CL_INVALID_WORK_GROUP_SIZE: return "CL_INVALID_WORK_GROUP_SIZE";
-    case CL_INVALID_BUFFER_SIZE: return "CL_INVALID_BUFFER_SIZE";
-    case CL_INVALID_GLOBAL_WORK_SIZE: return "CL_INVALID_GLOBAL_WORK_SIZE";
-    case -1001: return "CL_PLATFORM_NOT_FOUND_KHR";
-    default: return "CL error";
+    case CL_DEVICE_NOT_FOUND:
+      return "CL_DEVICE_NOT_FOUND";
+    case CL_OUT_OF_RESOURCES:
+      return "CL_OUT_OF_RESOURCES";
+    case CL_OUT_OF_HOST_MEMORY:
+      return "CL_OUT_OF_HOST_MEMORY";
+    case CL_MEM_OBJECT_ALLOCATION_FAILURE:
+      return "CL_MEM_OBJECT_ALLOCATION_FAILURE";
+    case CL_BUILD_PROGRAM_FAILURE:
+      return "CL_BUILD_PROGRAM_FAILURE";
+    case CL_INVALID_VALUE:
+      return "CL_INVALID_VALUE";
+    case CL_INVALID_KERNEL_ARGS:
+      return "CL_INVALID_KERNEL_ARGS";
+    case CL_INVALID_WORK_GROUP_SIZE:
+      return "CL_INVALID_WORK_GROUP_SIZE";
+    case CL_INVALID_BUFFER_SIZE:
+      return "CL_INVALID_BUFFER_SIZE";
+    case CL_INVALID_GLOBAL_WORK_SIZE:
+      return "CL_INVALID_GLOBAL_WORK_SIZE";
+    case -1001:
+      return "CL_PLATFORM_NOT_FOUND_KHR";
+    default:
+      return "CL error";
   }
 }
 
 void check(cl_int err, const char* what) {
   if (err != CL_SUCCESS) {
-    throw std::runtime_error(std::string("OpenCL: ") + what + " failed: " + error_name(err) +
-                             " (" + std::to_string(err) + ")");
+    throw std::runtime_error(std::string("OpenCL: ") + what + " failed: " + error_name(err) + " (" +
+                             std::to_string(err) + ")");
   }
 }
 
@@ -197,7 +209,8 @@ Selected select_device(const OpenCLOptions& options) {
     throw BackendUnavailable(
         "OpenCL back end: no device " +
         (options.device.empty() ? std::string("found") : "matches '" + options.device + "'") +
-        (seen.empty() ? std::string(" (the platforms have no devices)") : " (devices: " + seen + ")"));
+        (seen.empty() ? std::string(" (the platforms have no devices)")
+                      : " (devices: " + seen + ")"));
   }
   std::stable_sort(candidates.begin(), candidates.end(), [](const Selected& a, const Selected& b) {
     return (a.info.type == "GPU") > (b.info.type == "GPU");
@@ -205,7 +218,8 @@ Selected select_device(const OpenCLOptions& options) {
   return candidates.front();
 }
 
-Program build(cl_context ctx, cl_device_id dev, const char* source, const std::string& device_name) {
+Program build(cl_context ctx, cl_device_id dev, const char* source,
+              const std::string& device_name) {
   cl_int err = CL_SUCCESS;
   Program program(clCreateProgramWithSource(ctx, 1, &source, nullptr, &err));
   check(err, "clCreateProgramWithSource");
@@ -241,10 +255,9 @@ class OpenCLBackend final : public Backend {
     queue_ = Queue(clCreateCommandQueue(context_.get(), device_, CL_QUEUE_PROFILING_ENABLE, &err));
     check(err, "clCreateCommandQueue");
     program_ = build(context_.get(), device_, detail::kSomKernelSource, info_.name);
-    for (auto [kernel, name] : {std::pair{&k_associate_, "associate"},
-                                std::pair{&k_atomic_, "accumulate_atomic"},
-                                std::pair{&k_groups_, "accumulate_groups"},
-                                std::pair{&k_partials_, "sum_partials"}}) {
+    for (auto [kernel, name] :
+         {std::pair{&k_associate_, "associate"}, std::pair{&k_atomic_, "accumulate_atomic"},
+          std::pair{&k_groups_, "accumulate_groups"}, std::pair{&k_partials_, "sum_partials"}}) {
       *kernel = Kernel(clCreateKernel(program_.get(), name, &err));
       check(err, "clCreateKernel");
     }
@@ -278,9 +291,15 @@ class OpenCLBackend final : public Backend {
     grow(assoc_buf_, n_ * sizeof(cl_int), cap_points_);
     cap_points_ = std::max(cap_points_, n_ * sizeof(float));
     // Blocking writes: the caller's arrays may change once this returns.
-    check(clEnqueueWriteBuffer(queue_.get(), x_.get(), CL_TRUE, 0, n_ * sizeof(float), p.x.data(), 0, nullptr, nullptr), "upload x");
-    check(clEnqueueWriteBuffer(queue_.get(), y_.get(), CL_TRUE, 0, n_ * sizeof(float), p.y.data(), 0, nullptr, nullptr), "upload y");
-    check(clEnqueueWriteBuffer(queue_.get(), z_.get(), CL_TRUE, 0, n_ * sizeof(float), p.z.data(), 0, nullptr, nullptr), "upload z");
+    check(clEnqueueWriteBuffer(queue_.get(), x_.get(), CL_TRUE, 0, n_ * sizeof(float), p.x.data(),
+                               0, nullptr, nullptr),
+          "upload x");
+    check(clEnqueueWriteBuffer(queue_.get(), y_.get(), CL_TRUE, 0, n_ * sizeof(float), p.y.data(),
+                               0, nullptr, nullptr),
+          "upload y");
+    check(clEnqueueWriteBuffer(queue_.get(), z_.get(), CL_TRUE, 0, n_ * sizeof(float), p.z.data(),
+                               0, nullptr, nullptr),
+          "upload z");
   }
 
   void associate(const std::vector<float>& q, Accumulation& acc) override {
@@ -290,7 +309,8 @@ class OpenCLBackend final : public Backend {
     if (n_ == 0) return;
     const std::size_t m4 = 4 * static_cast<std::size_t>(m);
     if (m4 * sizeof(cl_long) > info_.local_memory_bytes) {
-      throw std::runtime_error("OpenCL: " + std::to_string(m) + " nodes do not fit the local memory of '" + info_.name + "'");
+      throw std::runtime_error("OpenCL: " + std::to_string(m) +
+                               " nodes do not fit the local memory of '" + info_.name + "'");
     }
     std::size_t cap_q = q_bytes_, cap_acc = acc_bytes_, cap_partial = partial_bytes_;
     grow(q_buf_, q.size() * sizeof(float), cap_q);
@@ -300,11 +320,16 @@ class OpenCLBackend final : public Backend {
     const cl_uint n = static_cast<cl_uint>(n_);
     const std::size_t global = (n_ + wg_ - 1) / wg_ * wg_;
 
-    check(clEnqueueWriteBuffer(queue_.get(), q_buf_.get(), CL_FALSE, 0, q.size() * sizeof(float), q.data(), 0, nullptr, nullptr), "upload nodes");
-    set_args(k_associate_.get(), x_.get(), y_.get(), z_.get(), n, q_buf_.get(), static_cast<cl_int>(m), assoc_buf_.get());
+    check(clEnqueueWriteBuffer(queue_.get(), q_buf_.get(), CL_FALSE, 0, q.size() * sizeof(float),
+                               q.data(), 0, nullptr, nullptr),
+          "upload nodes");
+    set_args(k_associate_.get(), x_.get(), y_.get(), z_.get(), n, q_buf_.get(),
+             static_cast<cl_int>(m), assoc_buf_.get());
     run(k_associate_.get(), global, wg_);  // kernel 1
     const cl_long zero = 0;
-    check(clEnqueueFillBuffer(queue_.get(), acc_buf_.get(), &zero, sizeof zero, 0, m4 * sizeof(cl_long), 0, nullptr, nullptr), "clear sums");
+    check(clEnqueueFillBuffer(queue_.get(), acc_buf_.get(), &zero, sizeof zero, 0,
+                              m4 * sizeof(cl_long), 0, nullptr, nullptr),
+          "clear sums");
     if (options_.accumulation == ClAccumulation::atomic) {
       set_args(k_atomic_.get(), x_.get(), y_.get(), z_.get(), assoc_buf_.get(), n, acc_buf_.get());
       run(k_atomic_.get(), global, wg_);  // kernel 2, paper's form
@@ -312,19 +337,25 @@ class OpenCLBackend final : public Backend {
       const std::size_t groups = std::min(kMaxGroups, global / wg_);
       grow(partial_buf_, groups * m4 * sizeof(cl_long), cap_partial);
       partial_bytes_ = std::max(partial_bytes_, groups * m4 * sizeof(cl_long));
-      set_args(k_groups_.get(), x_.get(), y_.get(), z_.get(), assoc_buf_.get(), n, static_cast<cl_int>(m));
-      check(clSetKernelArg(k_groups_.get(), 6, m4 * sizeof(cl_long), nullptr), "clSetKernelArg local");
+      set_args(k_groups_.get(), x_.get(), y_.get(), z_.get(), assoc_buf_.get(), n,
+               static_cast<cl_int>(m));
+      check(clSetKernelArg(k_groups_.get(), 6, m4 * sizeof(cl_long), nullptr),
+            "clSetKernelArg local");
       const cl_mem partial = partial_buf_.get();
       check(clSetKernelArg(k_groups_.get(), 7, sizeof partial, &partial), "clSetKernelArg");
       run(k_groups_.get(), groups * wg_, wg_);  // kernel 2, per-group partials
-      set_args(k_partials_.get(), partial_buf_.get(), static_cast<cl_uint>(groups), static_cast<cl_int>(m4), acc_buf_.get());
+      set_args(k_partials_.get(), partial_buf_.get(), static_cast<cl_uint>(groups),
+               static_cast<cl_int>(m4), acc_buf_.get());
       run(k_partials_.get(), (m4 + wg_ - 1) / wg_ * wg_, wg_);
     }
     fixed_.resize(m4);
-    check(clEnqueueReadBuffer(queue_.get(), acc_buf_.get(), CL_TRUE, 0, m4 * sizeof(cl_long), fixed_.data(), 0, nullptr, nullptr), "read sums");
+    check(clEnqueueReadBuffer(queue_.get(), acc_buf_.get(), CL_TRUE, 0, m4 * sizeof(cl_long),
+                              fixed_.data(), 0, nullptr, nullptr),
+          "read sums");
     collect_profile();
     for (int j = 0; j < m; ++j) {
-      for (int a = 0; a < 3; ++a) acc.sum[3 * j + a] = static_cast<double>(fixed_[4 * j + a]) / kFixScale;
+      for (int a = 0; a < 3; ++a)
+        acc.sum[3 * j + a] = static_cast<double>(fixed_[4 * j + a]) / kFixScale;
       acc.count[j] = fixed_[4 * j + 3];
     }
   }
@@ -333,7 +364,9 @@ class OpenCLBackend final : public Backend {
     if (!assoc_valid_) {
       assoc_host_.resize(n_);
       if (n_ > 0) {
-        check(clEnqueueReadBuffer(queue_.get(), assoc_buf_.get(), CL_TRUE, 0, n_ * sizeof(cl_int), assoc_host_.data(), 0, nullptr, nullptr), "read associations");
+        check(clEnqueueReadBuffer(queue_.get(), assoc_buf_.get(), CL_TRUE, 0, n_ * sizeof(cl_int),
+                                  assoc_host_.data(), 0, nullptr, nullptr),
+              "read associations");
       }
       assoc_valid_ = true;
     }
@@ -347,7 +380,8 @@ class OpenCLBackend final : public Backend {
   void grow(Buffer& buf, std::size_t bytes, std::size_t capacity) {
     if (buf.get() != nullptr && bytes <= capacity) return;
     cl_int err = CL_SUCCESS;
-    buf = Buffer(clCreateBuffer(context_.get(), CL_MEM_READ_WRITE, std::max<std::size_t>(bytes, 64), nullptr, &err));
+    buf = Buffer(clCreateBuffer(context_.get(), CL_MEM_READ_WRITE, std::max<std::size_t>(bytes, 64),
+                                nullptr, &err));
     check(err, "clCreateBuffer");
   }
 
@@ -359,15 +393,19 @@ class OpenCLBackend final : public Backend {
 
   void run(cl_kernel k, std::size_t global, std::size_t local) {
     cl_event e = nullptr;
-    check(clEnqueueNDRangeKernel(queue_.get(), k, 1, nullptr, &global, &local, 0, nullptr, &e), "clEnqueueNDRangeKernel");
+    check(clEnqueueNDRangeKernel(queue_.get(), k, 1, nullptr, &global, &local, 0, nullptr, &e),
+          "clEnqueueNDRangeKernel");
     events_.emplace_back(e);
   }
 
   void collect_profile() {
     for (const Event& e : events_) {
       cl_ulong start = 0, end = 0;
-      if (clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_START, sizeof start, &start, nullptr) == CL_SUCCESS &&
-          clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr) == CL_SUCCESS && end > start) {
+      if (clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_START, sizeof start, &start,
+                                  nullptr) == CL_SUCCESS &&
+          clGetEventProfilingInfo(e.get(), CL_PROFILING_COMMAND_END, sizeof end, &end, nullptr) ==
+              CL_SUCCESS &&
+          end > start) {
         device_seconds_ += static_cast<double>(end - start) * 1e-9;
       }
     }
@@ -403,7 +441,8 @@ std::vector<OpenCLDevice> opencl_devices() {
   const auto ps = platforms();
   for (int pi = 0; pi < static_cast<int>(ps.size()); ++pi) {
     const auto ds = devices_of(ps[pi]);
-    for (int di = 0; di < static_cast<int>(ds.size()); ++di) out.push_back(describe(pi, di, ps[pi], ds[di]));
+    for (int di = 0; di < static_cast<int>(ds.size()); ++di)
+      out.push_back(describe(pi, di, ps[pi], ds[di]));
   }
   return out;
 }
@@ -418,7 +457,8 @@ BackendKind auto_backend() {
 void check_opencl_build(const std::string& source, const OpenCLOptions& options) {
   const Selected sel = select_device(options);
   cl_int err = CL_SUCCESS;
-  const cl_context_properties props[] = {CL_CONTEXT_PLATFORM, reinterpret_cast<cl_context_properties>(sel.platform), 0};
+  const cl_context_properties props[] = {CL_CONTEXT_PLATFORM,
+                                         reinterpret_cast<cl_context_properties>(sel.platform), 0};
   Context ctx(clCreateContext(props, 1, &sel.device, nullptr, nullptr, &err));
   check(err, "clCreateContext");
   (void)build(ctx.get(), sel.device, source.c_str(), sel.info.name);

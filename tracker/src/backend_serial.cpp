@@ -15,9 +15,8 @@ class SerialBackend final : public Backend {
   void associate(const std::vector<float>& q, Accumulation& acc) override {
     const int m = static_cast<int>(q.size() / 3);
     acc.reset(m);
-    detail::associate_range(points_.x.data(), points_.y.data(), points_.z.data(), 0,
-                            points_.size(), q.data(), m, assoc_.data(), acc.sum.data(),
-                            acc.count.data());
+    detail::associate_range(points_.x.data(), points_.y.data(), points_.z.data(), 0, points_.size(),
+                            q.data(), m, assoc_.data(), acc.sum.data(), acc.count.data());
   }
   std::span<const std::int32_t> association() override { return assoc_; }
 

@@ -29,8 +29,8 @@ enum class ClAccumulation {
 
 /// Where and how the OpenCL back end runs.
 struct OpenCLOptions {
-  int platform = -1;             ///< platform index; -1: any
-  std::string device;            ///< case-insensitive substring of the device name; "": first
+  int platform = -1;   ///< platform index; -1: any
+  std::string device;  ///< case-insensitive substring of the device name; "": first
   ClAccumulation accumulation = ClAccumulation::reduction;
   std::size_t work_group_size = 0;  ///< 0: min(256, what the device allows)
   void validate() const;            ///< throws std::invalid_argument naming the field

@@ -31,7 +31,7 @@ struct TrackerParams {
   InitParams init;                            ///< LSQ init (paper mode)
   SomInit som_init = SomInit::straight_line;  ///< init of the accelerated-SOM mode
   BackendKind backend = BackendKind::serial;
-  OpenCLOptions opencl;  ///< used by BackendKind::opencl
+  OpenCLOptions opencl;     ///< used by BackendKind::opencl
   int threads = 0;          ///< parallel back ends: 0 = one per core
   int nodes = 12;           ///< M+1 reference vectors (M = 11 components)
   int iterations = 4;       ///< association/mean iterations per frame (Algorithm 1)
@@ -76,7 +76,7 @@ struct FrameResult {
   std::size_t n_points = 0;      ///< finite points used
   std::size_t n_non_finite = 0;  ///< points dropped for NaN/Inf
   double time_s = 0.0;           ///< tracking time (excludes the SDF metric) [s]
-  double device_time_s = 0.0;  ///< kernel time on the device, within time_s (OpenCL) [s]
+  double device_time_s = 0.0;    ///< kernel time on the device, within time_s (OpenCL) [s]
   double sdf_error = 0.0;        ///< mean |SDF| [m] (Eq. 16); NaN when lost or disabled
 };
 
