@@ -133,7 +133,7 @@ int run_track(const TrackOptions& o) {
   std::ostream& nodes_csv = staged.open(fs::path(o.out) / "nodes.csv");
   std::ostream& frames_csv = staged.open(fs::path(o.out) / "frames.csv");
   nodes_csv << "frame,node,x_m,y_m,z_m,n_points\n";
-  frames_csv << "frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm,n_non_finite,"
+  frames_csv << "frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm,n_non_finite,n_out_of_range,"
                 "init_reason,lost_reason,device_ms,file\n";
 
   Tracker tracker(p);
@@ -152,6 +152,10 @@ int run_track(const TrackOptions& o) {
     }
     const Cloud cloud = io::load_frame(path, k, depth);
     const FrameResult r = tracker.step(cloud);
+    if (r.n_out_of_range > 0 && !r.lost) {
+      std::cerr << "linksight: " << path.string() << ": dropped " << r.n_out_of_range
+                << " points beyond " << kMaxCoordinate << " m\n";
+    }
     if (r.n_non_finite > 0 && !r.lost) {
       std::cerr << "linksight: " << path.string() << ": dropped " << r.n_non_finite
                 << " non-finite points\n";
@@ -176,7 +180,7 @@ int run_track(const TrackOptions& o) {
     }
     frames_csv << f << ',' << r.n_points << ',' << r.iterations << ',' << (r.reinit ? 1 : 0) << ','
                << (r.lost ? 1 : 0) << ',' << fmt(r.time_s * 1e3, 4) << ','
-               << fmt(r.sdf_error * 1e3, 4) << ',' << r.n_non_finite << ','
+               << fmt(r.sdf_error * 1e3, 4) << ',' << r.n_non_finite << ',' << r.n_out_of_range << ','
                << to_string(r.init_reason) << ',' << to_string(r.lost_reason) << ','
                << fmt(r.device_time_s * 1e3, 4) << ',' << path.filename().string() << '\n';
   }

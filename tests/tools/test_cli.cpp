@@ -246,7 +246,7 @@ TEST_F(Cli, SomeNonFinitePointsAreDroppedAndCounted) {
   std::string line;
   std::getline(frames, line);
   std::getline(frames, line);
-  EXPECT_NE(line.find(",2,first_frame,none,0.0000,some.ply"), std::string::npos) << line;
+  EXPECT_NE(line.find(",2,0,first_frame,none,0.0000,some.ply"), std::string::npos) << line;
 }
 
 TEST_F(Cli, EmptyDirectory) {

@@ -54,7 +54,7 @@ TEST(OpenCL, BitIdenticalForAnyWorkGroupSize) {
   for (const auto& n : test::test_chain(sim::ChainShape::c_shape)) {
     for (int a = 0; a < 3; ++a) q.push_back(static_cast<float>(n[a]));
   }
-  std::vector<double> first_sum;
+  std::vector<std::int64_t> first_sum;
   std::vector<std::int64_t> first_count;
   std::vector<std::int32_t> first_assoc;
   for (ClAccumulation acc_kind : {ClAccumulation::reduction, ClAccumulation::atomic}) {

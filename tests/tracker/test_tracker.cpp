@@ -292,6 +292,25 @@ TEST_P(TrackerBackends, NonFinitePointsAreDroppedAndCounted) {
   EXPECT_EQ(ra.nodes, rb.nodes);
 }
 
+// Beyond 100 m a coordinate could overflow the fixed-point sums: dropped and counted.
+TEST_P(TrackerBackends, PointsBeyondTheRangeAreDroppedAndCounted) {
+  const Cloud clean = chain_cloud(test::test_chain(ChainShape::c_shape), 4, false, 0.001);
+  Cloud far = clean;
+  far.push_back(3e9f, 0.f, 1.f);
+  far.push_back(0.f, -150.f, 1.f);
+  Tracker a(params()), b(params());
+  const FrameResult ra = a.step(clean), rb = b.step(far);
+  EXPECT_EQ(rb.n_out_of_range, 2u);
+  EXPECT_EQ(rb.n_non_finite, 0u);
+  EXPECT_EQ(ra.nodes, rb.nodes);
+  Cloud only_far;
+  for (int i = 0; i < 20; ++i) only_far.push_back(1000.f, 0.f, 1.f);
+  const FrameResult lost = b.step(only_far);
+  EXPECT_TRUE(lost.lost);
+  EXPECT_EQ(lost.lost_reason, LostReason::too_few_points);
+  EXPECT_EQ(lost.n_out_of_range, 20u);
+}
+
 TEST_P(TrackerBackends, ResetStartsOverAndToleranceStopsEarly) {
   const Nodes truth = test::test_chain(ChainShape::c_shape);
   TrackerParams p = params();

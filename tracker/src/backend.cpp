@@ -30,8 +30,16 @@ BackendKind parse_backend(std::string_view name) {
 }
 
 void Accumulation::reset(int n_nodes) {
-  sum.assign(3 * static_cast<std::size_t>(n_nodes), 0.0);
+  sum.assign(3 * static_cast<std::size_t>(n_nodes), 0);
   count.assign(static_cast<std::size_t>(n_nodes), 0);
+}
+
+Eigen::Vector3d Accumulation::mean(int j) const {
+  const std::size_t k = static_cast<std::size_t>(j);
+  // Sums stay below 2^53 within kMaxCoordinate and kMaxPoints, so the conversion is exact.
+  const double scale = kFixedPerMetre * static_cast<double>(count[k]);
+  return {static_cast<double>(sum[3 * k]) / scale, static_cast<double>(sum[3 * k + 1]) / scale,
+          static_cast<double>(sum[3 * k + 2]) / scale};
 }
 
 void OpenCLOptions::validate() const {

@@ -22,7 +22,6 @@ extern const char kSomKernelSource[];
 
 namespace {
 
-constexpr double kFixScale = 4294967296.0;  // must match FIX_SCALE in som.cl
 constexpr std::size_t kMaxGroups = 1024;    // partial-sum rows of the reduction
 
 const char* error_name(cl_int e) {
@@ -191,7 +190,7 @@ Selected select_device(const OpenCLOptions& options) {
                              " platforms; see 'linksight devices')");
   }
   std::vector<Selected> candidates;
-  std::string seen;
+  std::string seen, lacking;
   for (int pi = 0; pi < static_cast<int>(ps.size()); ++pi) {
     if (options.platform >= 0 && pi != options.platform) continue;
     const auto ds = devices_of(ps[pi]);
@@ -202,8 +201,16 @@ Selected select_device(const OpenCLOptions& options) {
           lower(s.info.name).find(lower(options.device)) == std::string::npos) {
         continue;
       }
+      if (!s.info.int64_atomics) {
+        lacking += (lacking.empty() ? "" : "; ") + s.info.name;
+        continue;
+      }
       candidates.push_back(std::move(s));
     }
+  }
+  if (candidates.empty() && !lacking.empty()) {
+    throw BackendUnavailable("OpenCL back end: no usable device: " + lacking +
+                             " lack cl_khr_int64_base_atomics, which the accumulation kernels need");
   }
   if (candidates.empty()) {
     throw BackendUnavailable(
@@ -261,15 +268,23 @@ class OpenCLBackend final : public Backend {
       *kernel = Kernel(clCreateKernel(program_.get(), name, &err));
       check(err, "clCreateKernel");
     }
-    std::size_t kernel_max = 0;
-    check(clGetKernelWorkGroupInfo(k_groups_.get(), device_, CL_KERNEL_WORK_GROUP_SIZE,
-                                   sizeof kernel_max, &kernel_max, nullptr),
-          "clGetKernelWorkGroupInfo");
-    std::size_t assoc_max = 0;
-    check(clGetKernelWorkGroupInfo(k_associate_.get(), device_, CL_KERNEL_WORK_GROUP_SIZE,
-                                   sizeof assoc_max, &assoc_max, nullptr),
-          "clGetKernelWorkGroupInfo");
-    const std::size_t limit = std::min({info_.max_work_group_size, kernel_max, assoc_max});
+    // The work-group size must suit every kernel and the device's first dimension.
+    std::size_t limit = info_.max_work_group_size;
+    for (const Kernel* k : {&k_associate_, &k_atomic_, &k_groups_, &k_partials_}) {
+      std::size_t kernel_max = 0;
+      check(clGetKernelWorkGroupInfo(k->get(), device_, CL_KERNEL_WORK_GROUP_SIZE,
+                                     sizeof kernel_max, &kernel_max, nullptr),
+            "clGetKernelWorkGroupInfo");
+      limit = std::min(limit, kernel_max);
+    }
+    cl_uint dims = 0;
+    check(clGetDeviceInfo(device_, CL_DEVICE_MAX_WORK_ITEM_DIMENSIONS, sizeof dims, &dims, nullptr),
+          "clGetDeviceInfo");
+    std::vector<std::size_t> item_sizes(std::max<cl_uint>(dims, 1));
+    check(clGetDeviceInfo(device_, CL_DEVICE_MAX_WORK_ITEM_SIZES,
+                          item_sizes.size() * sizeof(std::size_t), item_sizes.data(), nullptr),
+          "clGetDeviceInfo");
+    limit = std::min(limit, item_sizes[0]);
     wg_ = options.work_group_size > 0 ? options.work_group_size : std::min<std::size_t>(256, limit);
     if (wg_ > limit) {
       throw std::invalid_argument("OpenCLOptions.work_group_size = " + std::to_string(wg_) +
@@ -281,34 +296,39 @@ class OpenCLBackend final : public Backend {
   BackendKind kind() const override { return BackendKind::opencl; }
 
   void set_points(const PointsView& p) override {
-    n_ = p.size();
+    // Nothing of the previous frame survives, even if this upload fails part-way.
+    n_ = 0;
     device_seconds_ = 0.0;
     assoc_valid_ = false;
-    if (n_ == 0) return;
-    grow(x_, n_ * sizeof(float), cap_points_);
-    grow(y_, n_ * sizeof(float), cap_points_);
-    grow(z_, n_ * sizeof(float), cap_points_);
-    grow(assoc_buf_, n_ * sizeof(cl_int), cap_points_);
-    cap_points_ = std::max(cap_points_, n_ * sizeof(float));
+    has_pass_ = false;
+    events_.clear();
+    const std::size_t n = p.size();
+    if (n == 0) return;
+    // All four point buffers share one capacity: float and cl_int are both 4 bytes.
+    static_assert(sizeof(float) == sizeof(cl_int));
+    for (Buffer* buf : {&x_, &y_, &z_, &assoc_buf_}) grow(*buf, n * sizeof(float), cap_points_);
+    cap_points_ = std::max(cap_points_, n * sizeof(float));
     // Blocking writes: the caller's arrays may change once this returns.
-    check(clEnqueueWriteBuffer(queue_.get(), x_.get(), CL_TRUE, 0, n_ * sizeof(float), p.x.data(),
-                               0, nullptr, nullptr),
-          "upload x");
-    check(clEnqueueWriteBuffer(queue_.get(), y_.get(), CL_TRUE, 0, n_ * sizeof(float), p.y.data(),
-                               0, nullptr, nullptr),
-          "upload y");
-    check(clEnqueueWriteBuffer(queue_.get(), z_.get(), CL_TRUE, 0, n_ * sizeof(float), p.z.data(),
-                               0, nullptr, nullptr),
-          "upload z");
+    for (auto [buf, src] : {std::pair{&x_, p.x.data()}, std::pair{&y_, p.y.data()},
+                            std::pair{&z_, p.z.data()}}) {
+      check(clEnqueueWriteBuffer(queue_.get(), buf->get(), CL_TRUE, 0, n * sizeof(float), src, 0,
+                                 nullptr, nullptr),
+            "upload points");
+    }
+    n_ = n;  // only now are the buffers valid for n points
   }
 
   void associate(const std::vector<float>& q, Accumulation& acc) override {
     const int m = static_cast<int>(q.size() / 3);
+    if (m < 1) throw std::invalid_argument("OpenCL back end: associate() needs at least one node");
     acc.reset(m);
     assoc_valid_ = false;
+    has_pass_ = true;
+    events_.clear();
     if (n_ == 0) return;
     const std::size_t m4 = 4 * static_cast<std::size_t>(m);
-    if (m4 * sizeof(cl_long) > info_.local_memory_bytes) {
+    if (options_.accumulation == ClAccumulation::reduction &&
+        m4 * sizeof(cl_long) > info_.local_memory_bytes) {
       throw std::runtime_error("OpenCL: " + std::to_string(m) +
                                " nodes do not fit the local memory of '" + info_.name + "'");
     }
@@ -320,7 +340,7 @@ class OpenCLBackend final : public Backend {
     const cl_uint n = static_cast<cl_uint>(n_);
     const std::size_t global = (n_ + wg_ - 1) / wg_ * wg_;
 
-    check(clEnqueueWriteBuffer(queue_.get(), q_buf_.get(), CL_FALSE, 0, q.size() * sizeof(float),
+    check(clEnqueueWriteBuffer(queue_.get(), q_buf_.get(), CL_TRUE, 0, q.size() * sizeof(float),
                                q.data(), 0, nullptr, nullptr),
           "upload nodes");
     set_args(k_associate_.get(), x_.get(), y_.get(), z_.get(), n, q_buf_.get(),
@@ -355,12 +375,13 @@ class OpenCLBackend final : public Backend {
     collect_profile();
     for (int j = 0; j < m; ++j) {
       for (int a = 0; a < 3; ++a)
-        acc.sum[3 * j + a] = static_cast<double>(fixed_[4 * j + a]) / kFixScale;
+        acc.sum[3 * j + a] = fixed_[4 * j + a];  // the CPU back ends use the same units
       acc.count[j] = fixed_[4 * j + 3];
     }
   }
 
   std::span<const std::int32_t> association() override {
+    if (!has_pass_) return {};  // no pass over the current points yet
     if (!assoc_valid_) {
       assoc_host_.resize(n_);
       if (n_ > 0) {
@@ -426,6 +447,7 @@ class OpenCLBackend final : public Backend {
   std::vector<cl_long> fixed_;
   std::vector<std::int32_t> assoc_host_;
   bool assoc_valid_ = false;
+  bool has_pass_ = false;
   std::vector<Event> events_;
   double device_seconds_ = 0.0;
 };

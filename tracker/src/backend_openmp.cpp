@@ -1,6 +1,9 @@
-// OpenMP back end. Points are cut into fixed-size chunks whatever the thread count;
-// each chunk sums into its own slot and the slots are added in chunk order, so the
-// result is bit-identical for any number of threads.
+// OpenMP back end. Points are cut into fixed-size chunks whatever the thread count, and
+// sums are fixed-point integers, so the result is bit-identical to serial for any number
+// of threads.
+
+
+
 #include <omp.h>
 
 #include <algorithm>
@@ -38,9 +41,9 @@ class OpenMPBackend final : public Backend {
 #pragma omp parallel for num_threads(threads_) schedule(static)
     for (long long c = 0; c < nc; ++c) {
       const std::size_t cu = static_cast<std::size_t>(c);
-      double* s = sum_.data() + cu * 3 * m;
+      std::int64_t* s = sum_.data() + cu * 3 * m;
       std::int64_t* k = count_.data() + cu * m;
-      std::fill(s, s + 3 * m, 0.0);
+      std::fill(s, s + 3 * m, std::int64_t{0});
       std::fill(k, k + m, 0);
       const std::size_t begin = cu * kChunk;
       const std::size_t end = std::min(n, begin + kChunk);
@@ -57,7 +60,7 @@ class OpenMPBackend final : public Backend {
   int threads_;
   PointsView points_;
   std::vector<std::int32_t> assoc_;
-  std::vector<double> sum_;
+  std::vector<std::int64_t> sum_;
   std::vector<std::int64_t> count_;
 };
 

@@ -64,18 +64,27 @@ inline void associate_block(const float* x, const float* y, const float* z, std:
   }
 }
 
-// Associates [begin, end) and adds Σx, Σy, Σz and counts into sum/count (Eq. 12 inputs).
+// Fixed point of a coordinate, exactly as the OpenCL kernels' convert_long_rte(v * 2^32f):
+// the product is exact, and adding and subtracting 1.5 * 2^52 rounds it to the nearest
+// integer, ties to even, for |v * 2^32| < 2^51 (any |v| <= kMaxCoordinate).
+inline std::int64_t to_fixed(float v) {
+  constexpr double kRound = 6755399441055744.0;  // 1.5 * 2^52
+  const double t = static_cast<double>(v) * 4294967296.0;
+  return static_cast<std::int64_t>((t + kRound) - kRound);
+}
+
+// Associates [begin, end) and adds fixed-point Σx, Σy, Σz and counts (Eq. 12 inputs).
 inline void associate_range(const float* x, const float* y, const float* z, std::size_t begin,
                             std::size_t end, const float* q, int m, std::int32_t* assoc,
-                            double* sum, std::int64_t* count) {
+                            std::int64_t* sum, std::int64_t* count) {
   for (std::size_t b = begin; b < end; b += kBlock) {
     const std::size_t n = (end - b < kBlock) ? end - b : kBlock;
     associate_block(x + b, y + b, z + b, n, q, m, assoc + b);
     for (std::size_t i = b; i < b + n; ++i) {
       const std::int32_t j = assoc[i];
-      sum[3 * j] += x[i];
-      sum[3 * j + 1] += y[i];
-      sum[3 * j + 2] += z[i];
+      sum[3 * j] += to_fixed(x[i]);
+      sum[3 * j + 1] += to_fixed(y[i]);
+      sum[3 * j + 2] += to_fixed(z[i]);
       ++count[j];
     }
   }

@@ -55,6 +55,8 @@ std::string_view to_string(LostReason r) {
       return "all_non_finite";
     case LostReason::too_few_points:
       return "too_few_points";
+    case LostReason::too_many_points:
+      return "too_many_points";
   }
   return "unknown";
 }
@@ -110,9 +112,18 @@ FrameResult Tracker::step(const Cloud& cloud) {
   s.y.resize(n_total);
   s.z.resize(n_total);
   std::size_t n = 0;
+  const float limit = static_cast<float>(kMaxCoordinate);
   for (std::size_t i = 0; i < n_total; ++i) {
     const float px = cloud.xyz[3 * i], py = cloud.xyz[3 * i + 1], pz = cloud.xyz[3 * i + 2];
-    if (!(std::isfinite(px) && std::isfinite(py) && std::isfinite(pz))) continue;
+    if (!(std::isfinite(px) && std::isfinite(py) && std::isfinite(pz))) {
+      ++r.n_non_finite;
+      continue;
+    }
+    // Beyond kMaxCoordinate the fixed-point sums could overflow.
+    if (std::abs(px) > limit || std::abs(py) > limit || std::abs(pz) > limit) {
+      ++r.n_out_of_range;
+      continue;
+    }
     s.x[n] = px;
     s.y[n] = py;
     s.z[n] = pz;
@@ -122,15 +133,16 @@ FrameResult Tracker::step(const Cloud& cloud) {
   s.y.resize(n);
   s.z.resize(n);
   r.n_points = n;
-  r.n_non_finite = n_total - n;
   const int m = params_.nodes;
 
   if (n_total == 0) {
     r.lost_reason = LostReason::empty_cloud;
-  } else if (n == 0) {
+  } else if (n == 0 && r.n_out_of_range == 0) {
     r.lost_reason = LostReason::all_non_finite;
   } else if (n < static_cast<std::size_t>(m)) {
     r.lost_reason = LostReason::too_few_points;
+  } else if (n > kMaxPoints) {
+    r.lost_reason = LostReason::too_many_points;
   }
   if (r.lost_reason != LostReason::none) {
     // A lost frame leaves the state alone: the next frame continues from the last output.
@@ -180,8 +192,7 @@ FrameResult Tracker::step(const Cloud& cloud) {
     for (int j = 0; j < m; ++j) {
       const auto c = s.acc.count[j];
       if (c == 0) continue;
-      const Eigen::Vector3d mean(s.acc.sum[3 * j], s.acc.sum[3 * j + 1], s.acc.sum[3 * j + 2]);
-      const Eigen::Vector3d updated = mean / static_cast<double>(c);  // Eq. (12)
+      const Eigen::Vector3d updated = s.acc.mean(j);  // Eq. (12)
       max_move = std::max(max_move, (updated - s.nodes[j]).norm());
       s.nodes[j] = updated;
     }

@@ -10,6 +10,8 @@
 #include <string_view>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "linksight/tracker/init.hpp"
 
 namespace linksight {
@@ -43,11 +45,23 @@ class BackendUnavailable : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Per-node sums are 64-bit fixed point with this many units per metre, in every back
+/// end. Integer addition is exact and associative, so serial, OpenMP and OpenCL (any
+/// thread count, work-group size or schedule) produce the same bits. Scaling a float by
+/// a power of two is exact, so coordinates of 2^-9 m or more convert without rounding.
+inline constexpr double kFixedPerMetre = 4294967296.0;  // 2^32
+/// Points with a coordinate beyond this are dropped (out of range): with at most
+/// kMaxPoints points, no sum can overflow (2^24 * 100 m * 2^32 < 2^63).
+inline constexpr double kMaxCoordinate = 100.0;  // [m]
+inline constexpr std::size_t kMaxPoints = std::size_t{1} << 24;
+
 /// Per-node sums of one association pass.
 struct Accumulation {
-  std::vector<double> sum;          ///< 3 per node: Σx, Σy, Σz [m]
+  std::vector<std::int64_t> sum;    ///< 3 per node: Σx, Σy, Σz in fixed point (kFixedPerMetre)
   std::vector<std::int64_t> count;  ///< |N_j|
   void reset(int n_nodes);
+  /// Mean of node j's points [m] (Eq. 12); requires count[j] > 0.
+  [[nodiscard]] Eigen::Vector3d mean(int j) const;
 };
 
 /// One implementation per file. The serial one is the reference; others must give the
