@@ -133,8 +133,9 @@ int run_track(const TrackOptions& o) {
   std::ostream& nodes_csv = staged.open(fs::path(o.out) / "nodes.csv");
   std::ostream& frames_csv = staged.open(fs::path(o.out) / "frames.csv");
   nodes_csv << "frame,node,x_m,y_m,z_m,n_points\n";
-  frames_csv << "frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm,n_non_finite,n_out_of_range,"
-                "init_reason,lost_reason,device_ms,file\n";
+  frames_csv
+      << "frame,n_points,iterations,reinit,lost,time_ms,sdf_err_mm,n_non_finite,n_out_of_range,"
+         "init_reason,lost_reason,device_ms,file\n";
 
   Tracker tracker(p);
   std::size_t lost = 0, reinits = 0;
@@ -180,8 +181,8 @@ int run_track(const TrackOptions& o) {
     }
     frames_csv << f << ',' << r.n_points << ',' << r.iterations << ',' << (r.reinit ? 1 : 0) << ','
                << (r.lost ? 1 : 0) << ',' << fmt(r.time_s * 1e3, 4) << ','
-               << fmt(r.sdf_error * 1e3, 4) << ',' << r.n_non_finite << ',' << r.n_out_of_range << ','
-               << to_string(r.init_reason) << ',' << to_string(r.lost_reason) << ','
+               << fmt(r.sdf_error * 1e3, 4) << ',' << r.n_non_finite << ',' << r.n_out_of_range
+               << ',' << to_string(r.init_reason) << ',' << to_string(r.lost_reason) << ','
                << fmt(r.device_time_s * 1e3, 4) << ',' << path.filename().string() << '\n';
   }
   const double mean_ms = frames.empty() ? 0 : time_sum * 1e3 / static_cast<double>(frames.size());

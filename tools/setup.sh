@@ -16,6 +16,7 @@ packages=(
   libstb-dev                # PNG decoding (stb_image)
   ocl-icd-opencl-dev opencl-headers  # OpenCL back end: ICD loader and headers
   pocl-opencl-icd           # an OpenCL CPU device, so every OpenCL test runs anywhere
+  libbullet-dev             # sim/: the chain's physics
 )
 
 missing=()

@@ -128,7 +128,8 @@ TEST_P(BackendEquivalence, TrackerSequenceMatchesSerialOn20kPoints) {
 // Every tracker test cloud (straight, C, S, noisy, emptied neighbourhoods), 12 frames:
 // bit-identical nodes and associations in every frame, so nothing drifts over a run.
 TEST_P(BackendEquivalence, BitIdenticalTrackingOnEveryTestCloud) {
-  for (sim::ChainShape shape : {sim::ChainShape::straight, sim::ChainShape::c_shape, sim::ChainShape::s_shape}) {
+  for (sim::ChainShape shape :
+       {sim::ChainShape::straight, sim::ChainShape::c_shape, sim::ChainShape::s_shape}) {
     Tracker ref(TrackerParams{});
     Tracker other(test::params_for(GetParam()));
     const Nodes truth = test::test_chain(shape);
@@ -139,7 +140,8 @@ TEST_P(BackendEquivalence, BitIdenticalTrackingOnEveryTestCloud) {
       if (f >= 6 && f < 9) s.hidden = {4, 5};  // emptied neighbourhoods: re-initialization
       const Cloud cloud = sim::sample_visible_surface(truth, {}, s);
       const FrameResult r = ref.step(cloud), o = other.step(cloud);
-      SCOPED_TRACE("shape " + std::to_string(static_cast<int>(shape)) + " frame " + std::to_string(f));
+      SCOPED_TRACE("shape " + std::to_string(static_cast<int>(shape)) + " frame " +
+                   std::to_string(f));
       EXPECT_EQ(r.reinit, o.reinit);
       EXPECT_EQ(r.nodes, o.nodes);  // exact
       EXPECT_EQ(r.counts, o.counts);
@@ -160,7 +162,8 @@ TEST_P(BackendEquivalence, NodeCountMayChangeBetweenPasses) {
   auto serial = make_backend(BackendKind::serial, 0);
   auto other = test::make(GetParam());
   for (std::size_t m : {12u, 3u, 1u, 7u}) {
-    const std::vector<float> q = as_float(Nodes(truth.begin(), truth.begin() + static_cast<long>(m)));
+    const std::vector<float> q =
+        as_float(Nodes(truth.begin(), truth.begin() + static_cast<long>(m)));
     SCOPED_TRACE(m);
     expect_same_as(one_pass(*serial, pts.view(), q), one_pass(*other, pts.view(), q));
   }

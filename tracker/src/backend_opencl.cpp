@@ -22,7 +22,7 @@ extern const char kSomKernelSource[];
 
 namespace {
 
-constexpr std::size_t kMaxGroups = 1024;    // partial-sum rows of the reduction
+constexpr std::size_t kMaxGroups = 1024;  // partial-sum rows of the reduction
 
 const char* error_name(cl_int e) {
   switch (e) {
@@ -209,8 +209,9 @@ Selected select_device(const OpenCLOptions& options) {
     }
   }
   if (candidates.empty() && !lacking.empty()) {
-    throw BackendUnavailable("OpenCL back end: no usable device: " + lacking +
-                             " lack cl_khr_int64_base_atomics, which the accumulation kernels need");
+    throw BackendUnavailable(
+        "OpenCL back end: no usable device: " + lacking +
+        " lack cl_khr_int64_base_atomics, which the accumulation kernels need");
   }
   if (candidates.empty()) {
     throw BackendUnavailable(
@@ -309,8 +310,8 @@ class OpenCLBackend final : public Backend {
     for (Buffer* buf : {&x_, &y_, &z_, &assoc_buf_}) grow(*buf, n * sizeof(float), cap_points_);
     cap_points_ = std::max(cap_points_, n * sizeof(float));
     // Blocking writes: the caller's arrays may change once this returns.
-    for (auto [buf, src] : {std::pair{&x_, p.x.data()}, std::pair{&y_, p.y.data()},
-                            std::pair{&z_, p.z.data()}}) {
+    for (auto [buf, src] :
+         {std::pair{&x_, p.x.data()}, std::pair{&y_, p.y.data()}, std::pair{&z_, p.z.data()}}) {
       check(clEnqueueWriteBuffer(queue_.get(), buf->get(), CL_TRUE, 0, n * sizeof(float), src, 0,
                                  nullptr, nullptr),
             "upload points");

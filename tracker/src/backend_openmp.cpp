@@ -2,8 +2,6 @@
 // sums are fixed-point integers, so the result is bit-identical to serial for any number
 // of threads.
 
-
-
 #include <omp.h>
 
 #include <algorithm>

@@ -52,9 +52,9 @@ enum class InitReason : std::uint8_t {
 
 enum class LostReason : std::uint8_t {
   none,
-  empty_cloud,     ///< the cloud has no points at all
-  all_non_finite,  ///< every point had a NaN or Inf coordinate
-  too_few_points,  ///< fewer finite points than nodes
+  empty_cloud,      ///< the cloud has no points at all
+  all_non_finite,   ///< every point had a NaN or Inf coordinate
+  too_few_points,   ///< fewer finite points than nodes
   too_many_points,  ///< more than kMaxPoints usable points
 };
 
@@ -74,12 +74,12 @@ struct FrameResult {
   int reinit_node = -1;  ///< first node found with an empty neighbourhood
   bool lost = false;
   LostReason lost_reason = LostReason::none;
-  std::size_t n_points = 0;      ///< finite points used
-  std::size_t n_non_finite = 0;  ///< points dropped for NaN/Inf
+  std::size_t n_points = 0;        ///< finite points used
+  std::size_t n_non_finite = 0;    ///< points dropped for NaN/Inf
   std::size_t n_out_of_range = 0;  ///< points dropped beyond kMaxCoordinate (100 m)
-  double time_s = 0.0;           ///< tracking time (excludes the SDF metric) [s]
-  double device_time_s = 0.0;    ///< kernel time on the device, within time_s (OpenCL) [s]
-  double sdf_error = 0.0;        ///< mean |SDF| [m] (Eq. 16); NaN when lost or disabled
+  double time_s = 0.0;             ///< tracking time (excludes the SDF metric) [s]
+  double device_time_s = 0.0;      ///< kernel time on the device, within time_s (OpenCL) [s]
+  double sdf_error = 0.0;          ///< mean |SDF| [m] (Eq. 16); NaN when lost or disabled
 };
 
 /// Tracks one link over a sequence of clouds; each frame starts from the previous

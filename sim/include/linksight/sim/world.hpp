@@ -1,0 +1,82 @@
+#pragma once
+/// @file The preloaded ball-and-socket chain in Bullet (paper Sec. I, Fig. 1): the source
+/// of ground truth. World frame W: z up. The chain hangs off a kinematic base B (the
+/// manipulator's active joint); at rest it leaves B along B's +x.
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <vector>
+
+#include "linksight/tracker/geometry.hpp"
+#include "linksight/tracker/model.hpp"
+
+namespace linksight::sim {
+
+/// The physical chain. Lengths in metres, masses in kg, forces in N.
+struct ChainParams {
+  ComponentGeometry geometry;
+  /// One component: an aluminium ball of r = 15 mm (38 g) plus neck and socket, rounded.
+  double component_mass = 0.05;
+  /// Preload between socket and ball. The default holds the chain's own weight in any
+  /// pose with a margin of 1.67 over the worst case (horizontal chain, base joint):
+  /// 0.3 * 450 N * 0.015 m = 2.03 N m against 55 * 0.05 kg * 9.81 m/s^2 * 0.045 m = 1.21 N m.
+  double preload_force = 450.0;
+  double friction_coefficient = 0.3;                          ///< socket-ball Coulomb friction
+  double cone_limit = 25.0 * 3.14159265358979323846 / 180.0;  ///< max bend per joint [rad]
+
+  /// Friction torque that holds each joint: mu * F_preload * r [N m].
+  [[nodiscard]] double holding_torque() const;
+  /// Gravity torque at the base joint with the chain horizontal: the worst case [N m].
+  [[nodiscard]] double worst_gravity_torque(double g = 9.81) const;
+  /// Throws std::invalid_argument naming the parameter.
+  void validate() const;
+};
+
+struct WorldParams {
+  double dt = 0.001;  ///< physics step [s] (1 kHz)
+  bool gravity = true;
+  double g = 9.81;        ///< [m/s^2], along -z of W
+  void validate() const;  ///< throws std::invalid_argument naming the parameter
+};
+
+/// A force on one component's ball centre over a time window.
+struct ForceAction {
+  int component = 0;
+  Eigen::Vector3d force_W = Eigen::Vector3d::Zero();  ///< [N]
+  double t_start = 0.0, t_end = 0.0;                  ///< [s], active on [t_start, t_end)
+};
+
+/// The truth of one instant.
+struct Truth {
+  double t = 0.0;  ///< [s]
+  /// The 11 ball centres and the tip point one pitch beyond the last along its axis:
+  /// the M+1 = 12 reference points the tracker estimates (Eq. 1) [m, W].
+  Nodes nodes_W;
+  std::vector<Eigen::Isometry3d> X_WK;  ///< component frames: origin ball centre, Z toward the next
+  std::vector<double> joint_angles;     ///< 3 per joint (bend y, bend z, twist) [rad]
+  bool contact = false;                 ///< anything touches the chain
+};
+
+/// Bullet model: per joint three revolute axes with friction motors (max impulse =
+/// holding torque * dt) under the MLCP solver, which hold the chain to 0.1 mm where
+/// Bullet's spherical-joint motor does not.
+class World {
+ public:
+  World(const ChainParams& chain, const WorldParams& world, const Eigen::Isometry3d& X_WB);
+  ~World();
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  /// Moves the kinematic base (the manipulator flange) to X_WB.
+  void set_base_pose(const Eigen::Isometry3d& X_WB);
+  void add_force(const ForceAction& action);  ///< validates the action (throws)
+  void step();                                ///< one physics step of WorldParams::dt
+  [[nodiscard]] double time() const;
+  [[nodiscard]] Truth truth() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace linksight::sim

@@ -1,0 +1,246 @@
+#include "linksight/sim/world.hpp"
+
+#include <BulletDynamics/Featherstone/btMultiBody.h>
+#include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
+#include <BulletDynamics/Featherstone/btMultiBodyJointMotor.h>
+#include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
+#include <BulletDynamics/Featherstone/btMultiBodyMLCPConstraintSolver.h>
+#include <BulletDynamics/MLCPSolvers/btDantzigSolver.h>
+#include <btBulletDynamicsCommon.h>
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+namespace linksight::sim {
+namespace {
+
+[[noreturn]] void bad(const char* type, const char* field, double value, const char* rule) {
+  throw std::invalid_argument(std::string(type) + "." + field + " = " + std::to_string(value) +
+                              ": " + rule);
+}
+
+// Debian builds Bullet with float btScalar.
+btVector3 bt(const Eigen::Vector3d& v) {
+  return {static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z())};
+}
+Eigen::Vector3d eig(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
+
+// Collision groups: the chain collides with the environment only.
+constexpr int kChainGroup = 2;
+constexpr int kEnvironmentGroup = 1;
+// Intermediate links of a joint's three revolute axes: tiny, but with mass and a collider
+// (a motor on a link without a collider does nothing in Bullet 3.24).
+constexpr double kDummyMass = 1e-3;
+constexpr double kDummyRadius = 1e-3;
+
+}  // namespace
+
+double ChainParams::holding_torque() const {
+  return friction_coefficient * preload_force * geometry.ball_radius;
+}
+
+double ChainParams::worst_gravity_torque(double g) const {
+  // Horizontal chain: component k's weight acts k pitches from the base joint (ball 0).
+  const int n = geometry.count;
+  return component_mass * g * geometry.pitch * (n * (n - 1) / 2.0);
+}
+
+void ChainParams::validate() const {
+  geometry.validate();
+  if (geometry.pitch < 2 * geometry.ball_radius) {
+    bad("ChainParams", "geometry.pitch", geometry.pitch,
+        "must be >= 2 * ball_radius (balls would overlap)");
+  }
+  if (!(component_mass > 0 && std::isfinite(component_mass))) {
+    bad("ChainParams", "component_mass", component_mass, "must be > 0");
+  }
+  if (!(preload_force >= 0 && std::isfinite(preload_force))) {
+    bad("ChainParams", "preload_force", preload_force, "must be >= 0");
+  }
+  if (!(friction_coefficient >= 0 && std::isfinite(friction_coefficient))) {
+    bad("ChainParams", "friction_coefficient", friction_coefficient, "must be >= 0");
+  }
+  if (!(cone_limit > 0 && cone_limit < std::numbers::pi / 2)) {
+    bad("ChainParams", "cone_limit", cone_limit, "must be in (0, pi/2) rad");
+  }
+}
+
+void WorldParams::validate() const {
+  if (!(dt > 0 && dt <= 0.01)) bad("WorldParams", "dt", dt, "must be in (0, 0.01] s");
+  if (!(g >= 0 && std::isfinite(g))) bad("WorldParams", "g", g, "must be >= 0");
+}
+
+struct World::Impl {
+  ChainParams chain;
+  WorldParams params;
+  // Declaration order is destruction order in reverse: the world goes before its parts.
+  std::unique_ptr<btDefaultCollisionConfiguration> config;
+  std::unique_ptr<btCollisionDispatcher> dispatcher;
+  std::unique_ptr<btDbvtBroadphase> broadphase;
+  std::unique_ptr<btDantzigSolver> mlcp;
+  std::unique_ptr<btMultiBodyMLCPConstraintSolver> solver;
+  std::unique_ptr<btMultiBodyDynamicsWorld> world;
+  std::unique_ptr<btMultiBody> body;
+  std::unique_ptr<btSphereShape> ball_shape, dummy_shape;
+  std::vector<std::unique_ptr<btMultiBodyLinkCollider>> colliders;
+  std::vector<std::unique_ptr<btMultiBodyJointMotor>> motors;
+  std::vector<ForceAction> actions;
+  long long steps = 0;
+
+  ~Impl() {
+    if (!world) return;
+    for (auto& m : motors) world->removeMultiBodyConstraint(m.get());
+    for (auto& c : colliders) world->removeCollisionObject(c.get());
+    if (body) world->removeMultiBody(body.get());
+  }
+  [[nodiscard]] int links() const { return 3 * chain.geometry.count; }
+};
+
+World::World(const ChainParams& chain, const WorldParams& params, const Eigen::Isometry3d& X_WB)
+    : impl_(std::make_unique<Impl>()) {
+  chain.validate();
+  params.validate();
+  Impl& s = *impl_;
+  s.chain = chain;
+  s.params = params;
+  s.config = std::make_unique<btDefaultCollisionConfiguration>();
+  s.dispatcher = std::make_unique<btCollisionDispatcher>(s.config.get());
+  s.broadphase = std::make_unique<btDbvtBroadphase>();
+  s.mlcp = std::make_unique<btDantzigSolver>();
+  s.solver = std::make_unique<btMultiBodyMLCPConstraintSolver>(s.mlcp.get());
+  s.world = std::make_unique<btMultiBodyDynamicsWorld>(s.dispatcher.get(), s.broadphase.get(),
+                                                       s.solver.get(), s.config.get());
+  s.world->setGravity(btVector3(0, 0, params.gravity ? -params.g : 0.0));
+
+  const ComponentGeometry& g = chain.geometry;
+  const int n_links = s.links();
+  s.body = std::make_unique<btMultiBody>(n_links, 0.0, btVector3(0, 0, 0), /*fixedBase=*/true,
+                                         /*canSleep=*/false);
+  const double m = chain.component_mass, r = g.ball_radius;
+  const btVector3 I_ball = btVector3(1, 1, 1) * (0.4 * m * r * r);
+  const btVector3 I_dummy = btVector3(1, 1, 1) * (0.4 * kDummyMass * kDummyRadius * kDummyRadius);
+  for (int k = 0; k < g.count; ++k) {
+    for (int a = 0; a < 3; ++a) {
+      const int i = 3 * k + a;
+      // Joint k pivots at ball centre k, one pitch along the previous component's +x.
+      const btVector3 parent_to_pivot =
+          (a == 0 && k > 0) ? btVector3(g.pitch, 0, 0) : btVector3(0, 0, 0);
+      // Bend about y, bend about z, then twist about the component's own axis x.
+      const btVector3 axis = a == 0   ? btVector3(0, 1, 0)
+                             : a == 1 ? btVector3(0, 0, 1)
+                                      : btVector3(1, 0, 0);
+      const bool component = a == 2;
+      s.body->setupRevolute(i, component ? m : kDummyMass, component ? I_ball : I_dummy, i - 1,
+                            btQuaternion::getIdentity(), axis, parent_to_pivot, btVector3(0, 0, 0),
+                            /*disableParentCollision=*/true);
+    }
+  }
+  s.body->finalizeMultiDof();
+  s.body->setLinearDamping(0.0);
+  s.body->setAngularDamping(0.0);
+  s.body->setHasSelfCollision(false);
+  s.world->addMultiBody(s.body.get());
+
+  s.ball_shape = std::make_unique<btSphereShape>(r);
+  s.dummy_shape = std::make_unique<btSphereShape>(kDummyRadius);
+  for (int i = 0; i < n_links; ++i) {
+    auto col = std::make_unique<btMultiBodyLinkCollider>(s.body.get(), i);
+    col->setCollisionShape(i % 3 == 2 ? s.ball_shape.get() : s.dummy_shape.get());
+    s.world->addCollisionObject(col.get(), kChainGroup, kEnvironmentGroup);
+    s.body->getLink(i).m_collider = col.get();
+    s.colliders.push_back(std::move(col));
+  }
+  // Preload friction: each axis resists with up to the holding torque, so the chain keeps
+  // any shape until a load exceeds it, then slips (plastic bending).
+  const double max_impulse = chain.holding_torque() * params.dt;
+  for (int i = 0; i < n_links; ++i) {
+    auto motor = std::make_unique<btMultiBodyJointMotor>(s.body.get(), i, 0.0, max_impulse);
+    s.world->addMultiBodyConstraint(motor.get());
+    s.motors.push_back(std::move(motor));
+  }
+  set_base_pose(X_WB);
+}
+
+World::~World() = default;
+
+void World::set_base_pose(const Eigen::Isometry3d& X_WB) {
+  Impl& s = *impl_;
+  const Eigen::Quaterniond q_WB(X_WB.rotation());
+  s.body->setBasePos(bt(X_WB.translation()));
+  // Bullet stores the rotation from world to base.
+  s.body->setWorldToBaseRot(
+      btQuaternion(static_cast<btScalar>(q_WB.x()), static_cast<btScalar>(q_WB.y()),
+                   static_cast<btScalar>(q_WB.z()), static_cast<btScalar>(q_WB.w()))
+          .inverse());
+  btAlignedObjectArray<btQuaternion> scratch_q;
+  btAlignedObjectArray<btVector3> scratch_m;
+  s.body->updateCollisionObjectWorldTransforms(scratch_q, scratch_m);
+}
+
+void World::add_force(const ForceAction& action) {
+  if (action.component < 0 || action.component >= impl_->chain.geometry.count) {
+    throw std::invalid_argument("ForceAction.component = " + std::to_string(action.component) +
+                                ": must be in [0, " +
+                                std::to_string(impl_->chain.geometry.count - 1) + "]");
+  }
+  if (!action.force_W.allFinite())
+    throw std::invalid_argument("ForceAction.force_W: must be finite");
+  if (!(action.t_end >= action.t_start)) {
+    throw std::invalid_argument("ForceAction.t_end = " + std::to_string(action.t_end) +
+                                ": must be >= t_start");
+  }
+  impl_->actions.push_back(action);
+}
+
+void World::step() {
+  Impl& s = *impl_;
+  const double t = time();
+  for (const ForceAction& a : s.actions) {
+    if (t >= a.t_start && t < a.t_end) s.body->addLinkForce(3 * a.component + 2, bt(a.force_W));
+  }
+  s.world->stepSimulation(s.params.dt, 0, s.params.dt);
+  ++s.steps;
+}
+
+double World::time() const { return static_cast<double>(impl_->steps) * impl_->params.dt; }
+
+Truth World::truth() const {
+  const Impl& s = *impl_;
+  const ComponentGeometry& g = s.chain.geometry;
+  Truth out;
+  out.t = time();
+  // The component frame K of the paper: Z along the chain (the link's +x), X = link y.
+  Eigen::Matrix3d R_LK;
+  R_LK.col(0) = Eigen::Vector3d::UnitY();
+  R_LK.col(1) = Eigen::Vector3d::UnitZ();
+  R_LK.col(2) = Eigen::Vector3d::UnitX();
+  for (int k = 0; k < g.count; ++k) {
+    const int i = 3 * k + 2;
+    const btVector3 p = s.body->localPosToWorld(i, btVector3(0, 0, 0));
+    const btMatrix3x3 R = s.body->localFrameToWorld(i, btMatrix3x3::getIdentity());
+    Eigen::Matrix3d R_WL;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) R_WL(r, c) = R[r][c];
+    }
+    Eigen::Isometry3d X_WK = Eigen::Isometry3d::Identity();
+    X_WK.linear() = R_WL * R_LK;
+    X_WK.translation() = eig(p);
+    out.X_WK.push_back(X_WK);
+    out.nodes_W.push_back(eig(p));
+  }
+  // Tip point p_M: one pitch beyond the last ball along its axis (Eq. 1).
+  out.nodes_W.push_back(out.X_WK.back() * Eigen::Vector3d(0, 0, g.pitch));
+  for (int i = 0; i < s.links(); ++i) out.joint_angles.push_back(s.body->getJointPos(i));
+  const int manifolds = s.dispatcher->getNumManifolds();
+  for (int i = 0; i < manifolds && !out.contact; ++i) {
+    const btPersistentManifold* mf = s.dispatcher->getManifoldByIndexInternal(i);
+    for (int c = 0; c < mf->getNumContacts(); ++c) {
+      if (mf->getContactPoint(c).getDistance() <= 0.0) out.contact = true;
+    }
+  }
+  return out;
+}
+
+}  // namespace linksight::sim
