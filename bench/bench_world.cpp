@@ -12,7 +12,11 @@ void BM_WorldStep(benchmark::State& state) {
   X_WB.translation() = Eigen::Vector3d(0, 0, 0.5);
   World w(ChainParams{}, WorldParams{}, X_WB);
   // A slipping load keeps the solver busy: every joint motor active.
-  w.add_force({10, Eigen::Vector3d(0, 8.0, 0), 0.0, 1e9});
+  ForceAction load;
+  load.component = 10;
+  load.force_W = Eigen::Vector3d(0, 8.0, 0);
+  load.t_end = 1e9;
+  w.add_force(load);
   for (auto _ : state) w.step();
   state.counters["sim_s_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()) * 1e-3,
                                                      benchmark::Counter::kIsRate);

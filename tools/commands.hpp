@@ -15,5 +15,7 @@ using Runner = std::function<int()>;
 Runner add_track(CLI::App& app);
 Runner add_synth(CLI::App& app);
 Runner add_devices(CLI::App& app);
+Runner add_simulate(CLI::App& app);
+Runner add_meshes(CLI::App& app);
 
 }  // namespace linksight::cli

@@ -20,9 +20,15 @@ int main(int argc, char** argv) {
     CLI::App* synth = app.add_subcommand(
         "synth", "Write a synthetic cloud sequence of the link with its true nodes.");
     runners[synth] = add_synth(*synth);
+    CLI::App* simulate = app.add_subcommand(
+        "simulate", "Run a scene's physics and write the true nodes at the camera rate.");
+    runners[simulate] = add_simulate(*simulate);
     CLI::App* devices = app.add_subcommand(
         "devices", "List every OpenCL platform and device, and what the opencl back end needs.");
     runners[devices] = add_devices(*devices);
+    CLI::App* meshes = app.add_subcommand(
+        "meshes", "Write the component's triangle mesh (component.obj, metres, frame K).");
+    runners[meshes] = add_meshes(*meshes);
   }
   try {
     app.parse(argc, argv);

@@ -17,6 +17,8 @@ packages=(
   ocl-icd-opencl-dev opencl-headers  # OpenCL back end: ICD loader and headers
   pocl-opencl-icd           # an OpenCL CPU device, so every OpenCL test runs anywhere
   libbullet-dev             # sim/: the chain's physics
+  libyaml-cpp-dev           # scene files
+  libassimp-dev             # sim/: mesh files (load_mesh)
 )
 
 missing=()

@@ -2,12 +2,14 @@
 
 #include <BulletDynamics/Featherstone/btMultiBody.h>
 #include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
+#include <BulletDynamics/Featherstone/btMultiBodyJointLimitConstraint.h>
 #include <BulletDynamics/Featherstone/btMultiBodyJointMotor.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
 #include <BulletDynamics/Featherstone/btMultiBodyMLCPConstraintSolver.h>
 #include <BulletDynamics/MLCPSolvers/btDantzigSolver.h>
 #include <btBulletDynamicsCommon.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -26,6 +28,19 @@ btVector3 bt(const Eigen::Vector3d& v) {
   return {static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z())};
 }
 Eigen::Vector3d eig(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
+
+btTransform bt(const Eigen::Isometry3d& X) {
+  const Eigen::Quaterniond q(X.rotation());
+  return btTransform(btQuaternion(static_cast<btScalar>(q.x()), static_cast<btScalar>(q.y()),
+                                  static_cast<btScalar>(q.z()), static_cast<btScalar>(q.w())),
+                     bt(X.translation()));
+}
+
+// Bend of a joint whose two bend axes turned by a (about y) then b (about z):
+// the angle between the parent's and the child's x axes, cos(theta) = cos(a) cos(b).
+double bend_angle(double a, double b) {
+  return std::acos(std::clamp(std::cos(a) * std::cos(b), -1.0, 1.0));
+}
 
 // Collision groups: the chain collides with the environment only.
 constexpr int kChainGroup = 2;
@@ -86,11 +101,25 @@ struct World::Impl {
   std::unique_ptr<btSphereShape> ball_shape, dummy_shape;
   std::vector<std::unique_ptr<btMultiBodyLinkCollider>> colliders;
   std::vector<std::unique_ptr<btMultiBodyJointMotor>> motors;
+  std::vector<std::unique_ptr<btMultiBodyJointLimitConstraint>> limits;
   std::vector<ForceAction> actions;
+  BaseTrajectory trajectory;
+  bool has_trajectory = false;
+  struct Kinematic {
+    std::unique_ptr<btCollisionShape> shape;
+    std::unique_ptr<btDefaultMotionState> motion;
+    std::unique_ptr<btRigidBody> body;
+    BaseTrajectory path;  // empty for static obstacles
+  };
+  std::vector<Kinematic> environment;
   long long steps = 0;
+
+  void project_onto_cone();
 
   ~Impl() {
     if (!world) return;
+    for (auto& e : environment) world->removeRigidBody(e.body.get());
+    for (auto& l : limits) world->removeMultiBodyConstraint(l.get());
     for (auto& m : motors) world->removeMultiBodyConstraint(m.get());
     for (auto& c : colliders) world->removeCollisionObject(c.get());
     if (body) world->removeMultiBody(body.get());
@@ -160,6 +189,17 @@ World::World(const ChainParams& chain, const WorldParams& params, const Eigen::I
     s.world->addMultiBodyConstraint(motor.get());
     s.motors.push_back(std::move(motor));
   }
+  // Cone limit: hard limits on each bend axis give proper impulses in the two bend
+  // planes; a projection after each step catches diagonal bends (Impl::project_onto_cone).
+  for (int k = 0; k < g.count; ++k) {
+    for (int a = 0; a < 2; ++a) {
+      auto limit = std::make_unique<btMultiBodyJointLimitConstraint>(
+          s.body.get(), 3 * k + a, static_cast<btScalar>(-chain.cone_limit),
+          static_cast<btScalar>(chain.cone_limit));
+      s.world->addMultiBodyConstraint(limit.get());
+      s.limits.push_back(std::move(limit));
+    }
+  }
   set_base_pose(X_WB);
 }
 
@@ -179,14 +219,89 @@ void World::set_base_pose(const Eigen::Isometry3d& X_WB) {
   s.body->updateCollisionObjectWorldTransforms(scratch_q, scratch_m);
 }
 
+void PusherParams::validate() const {
+  if (!(radius > 0 && std::isfinite(radius))) bad("PusherParams", "radius", radius, "must be > 0");
+  if (!(length >= 0 && std::isfinite(length)))
+    bad("PusherParams", "length", length, "must be >= 0");
+}
+
+void ObstacleParams::validate() const {
+  if (!(half_extents.minCoeff() > 0 && half_extents.allFinite())) {
+    bad("ObstacleParams", "half_extents", half_extents.minCoeff(), "must all be > 0");
+  }
+}
+
+void World::set_base_trajectory(const BaseTrajectory& trajectory) {
+  impl_->trajectory = trajectory;
+  impl_->has_trajectory = true;
+  set_base_pose(trajectory.pose(time()));
+}
+
+void World::add_pusher(const PusherParams& pusher) {
+  pusher.validate();
+  Impl& s = *impl_;
+  Impl::Kinematic k;
+  if (pusher.length > 0) {
+    k.shape = std::make_unique<btCapsuleShapeZ>(static_cast<btScalar>(pusher.radius),
+                                                static_cast<btScalar>(pusher.length));
+  } else {
+    k.shape = std::make_unique<btSphereShape>(static_cast<btScalar>(pusher.radius));
+  }
+  k.path = pusher.path;
+  k.motion = std::make_unique<btDefaultMotionState>(bt(pusher.path.pose(time())));
+  k.body = std::make_unique<btRigidBody>(0.0f, k.motion.get(), k.shape.get());
+  k.body->setCollisionFlags(k.body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+  k.body->setActivationState(DISABLE_DEACTIVATION);
+  s.world->addRigidBody(k.body.get(), kEnvironmentGroup, kChainGroup);
+  s.environment.push_back(std::move(k));
+}
+
+void World::add_obstacle(const ObstacleParams& obstacle) {
+  obstacle.validate();
+  Impl& s = *impl_;
+  Impl::Kinematic k;
+  k.shape = std::make_unique<btBoxShape>(bt(obstacle.half_extents));
+  k.motion = std::make_unique<btDefaultMotionState>(bt(obstacle.X_WO));
+  k.body = std::make_unique<btRigidBody>(0.0f, k.motion.get(), k.shape.get());
+  s.world->addRigidBody(k.body.get(), kEnvironmentGroup, kChainGroup);
+  s.environment.push_back(std::move(k));
+}
+
+void World::Impl::project_onto_cone() {
+  for (int k = 0; k < chain.geometry.count; ++k) {
+    const double a = body->getJointPos(3 * k), b = body->getJointPos(3 * k + 1);
+    if (bend_angle(a, b) <= chain.cone_limit) continue;
+    // Shrink both bend angles by one factor until the bend is on the cone.
+    double lo = 0.0, hi = 1.0;
+    for (int it = 0; it < 40; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (bend_angle(mid * a, mid * b) <= chain.cone_limit ? lo : hi) = mid;
+    }
+    body->setJointPos(3 * k, static_cast<btScalar>(lo * a));
+    body->setJointPos(3 * k + 1, static_cast<btScalar>(lo * b));
+    body->setJointVel(3 * k, 0);
+    body->setJointVel(3 * k + 1, 0);
+  }
+}
+
+double World::max_bend() const {
+  const Impl& s = *impl_;
+  double worst = 0.0;
+  for (int k = 0; k < s.chain.geometry.count; ++k) {
+    worst = std::max(worst, bend_angle(s.body->getJointPos(3 * k), s.body->getJointPos(3 * k + 1)));
+  }
+  return worst;
+}
+
 void World::add_force(const ForceAction& action) {
   if (action.component < 0 || action.component >= impl_->chain.geometry.count) {
     throw std::invalid_argument("ForceAction.component = " + std::to_string(action.component) +
                                 ": must be in [0, " +
                                 std::to_string(impl_->chain.geometry.count - 1) + "]");
   }
-  if (!action.force_W.allFinite())
-    throw std::invalid_argument("ForceAction.force_W: must be finite");
+  if (!action.force_W.allFinite() || !action.torque_W.allFinite()) {
+    throw std::invalid_argument("ForceAction.force_W/torque_W: must be finite");
+  }
   if (!(action.t_end >= action.t_start)) {
     throw std::invalid_argument("ForceAction.t_end = " + std::to_string(action.t_end) +
                                 ": must be >= t_start");
@@ -197,10 +312,26 @@ void World::add_force(const ForceAction& action) {
 void World::step() {
   Impl& s = *impl_;
   const double t = time();
+  const double t_next = t + s.params.dt;
   for (const ForceAction& a : s.actions) {
-    if (t >= a.t_start && t < a.t_end) s.body->addLinkForce(3 * a.component + 2, bt(a.force_W));
+    if (t >= a.t_start && t < a.t_end) {
+      s.body->addLinkForce(3 * a.component + 2, bt(a.force_W));
+      s.body->addLinkTorque(3 * a.component + 2, bt(a.torque_W));
+    }
   }
-  s.world->stepSimulation(s.params.dt, 0, s.params.dt);
+  if (s.has_trajectory) {
+    const Eigen::Isometry3d X0 = s.trajectory.pose(t), X1 = s.trajectory.pose(t_next);
+    set_base_pose(X1);
+    s.body->setBaseVel(bt(Eigen::Vector3d((X1.translation() - X0.translation()) / s.params.dt)));
+    const Eigen::AngleAxisd dR(X1.linear() * X0.linear().transpose());
+    s.body->setBaseOmega(bt(Eigen::Vector3d(dR.axis() * dR.angle() / s.params.dt)));
+  }
+  for (auto& e : s.environment) {
+    if (!e.path.empty()) e.motion->setWorldTransform(bt(e.path.pose(t_next)));
+  }
+  s.world->stepSimulation(static_cast<btScalar>(s.params.dt), 0,
+                          static_cast<btScalar>(s.params.dt));
+  s.project_onto_cone();
   ++s.steps;
 }
 

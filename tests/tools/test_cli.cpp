@@ -195,6 +195,29 @@ TEST_F(Cli, DeviceFromTheEnvironmentUnlessTheFlagSaysOtherwise) {
                    "--cl-platform 7", "does not exist");
 }
 
+TEST_F(Cli, SimulateWritesTruthAtTheCameraRate) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const CliRun r = run("simulate --scene " + scene + " --frames 10 --out " + out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream in(out / "truth.csv");
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "frame,t_s,node,x_m,y_m,z_m");
+  int rows = 0;
+  std::string last;
+  for (; std::getline(in, line); ++rows) last = line;
+  EXPECT_EQ(rows, 10 * 12);
+  EXPECT_EQ(last.rfind("9,0.300000,11,", 0), 0u) << last;  // 30 fps
+  fs::remove_all(out);
+  std::ofstream(dir / "bad.yaml") << "chain:\n  preload_n: lots\n";
+  const CliRun bad =
+      run("simulate --scene " + (dir / "bad.yaml").string() + " --out " + out.string(), dir);
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("bad.yaml:2: chain.preload_n: expected a number"), std::string::npos)
+      << bad.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
   const std::string input = std::string(LINKSIGHT_TEST_DATA_DIR) + "/sr305/100.png";
   const CliRun r = run(

@@ -7,6 +7,7 @@
 #include <memory>
 #include <vector>
 
+#include "linksight/sim/trajectory.hpp"
 #include "linksight/tracker/geometry.hpp"
 #include "linksight/tracker/model.hpp"
 
@@ -39,11 +40,28 @@ struct WorldParams {
   void validate() const;  ///< throws std::invalid_argument naming the parameter
 };
 
-/// A force on one component's ball centre over a time window.
+/// A force on one component's ball centre, and a torque on it, over a time window.
 struct ForceAction {
   int component = 0;
-  Eigen::Vector3d force_W = Eigen::Vector3d::Zero();  ///< [N]
-  double t_start = 0.0, t_end = 0.0;                  ///< [s], active on [t_start, t_end)
+  Eigen::Vector3d force_W = Eigen::Vector3d::Zero();   ///< [N]
+  Eigen::Vector3d torque_W = Eigen::Vector3d::Zero();  ///< [N m]
+  double t_start = 0.0, t_end = 0.0;                   ///< [s], active on [t_start, t_end)
+};
+
+/// A kinematic pusher: a sphere (length 0) or a capsule along its local z, moved along a
+/// scripted pose path, pressing on whatever it meets.
+struct PusherParams {
+  double radius = 0.01;  ///< [m]
+  double length = 0.0;   ///< capsule's cylinder length [m]; 0: a sphere
+  BaseTrajectory path;   ///< pose of the pusher in W over time
+  void validate() const;
+};
+
+/// A static box the chain can be pressed against.
+struct ObstacleParams {
+  Eigen::Vector3d half_extents = Eigen::Vector3d(0.05, 0.05, 0.05);  ///< [m]
+  Eigen::Isometry3d X_WO = Eigen::Isometry3d::Identity();
+  void validate() const;
 };
 
 /// The truth of one instant.
@@ -67,10 +85,17 @@ class World {
   World(const World&) = delete;
   World& operator=(const World&) = delete;
 
-  /// Moves the kinematic base (the manipulator flange) to X_WB.
+  /// Moves the kinematic base (the manipulator flange) to X_WB now.
   void set_base_pose(const Eigen::Isometry3d& X_WB);
+  /// From now on each step puts the base at trajectory.pose(t + dt). A kinematic base:
+  /// its velocity enters contacts, its acceleration does not load the joints.
+  void set_base_trajectory(const BaseTrajectory& trajectory);
   void add_force(const ForceAction& action);  ///< validates the action (throws)
-  void step();                                ///< one physics step of WorldParams::dt
+  void add_pusher(const PusherParams& pusher);
+  void add_obstacle(const ObstacleParams& obstacle);
+  /// Largest bend between neighbours (or of component 0 against the base) now [rad].
+  [[nodiscard]] double max_bend() const;
+  void step();  ///< one physics step of WorldParams::dt
   [[nodiscard]] double time() const;
   [[nodiscard]] Truth truth() const;
 

@@ -1,0 +1,42 @@
+#pragma once
+/// @file Triangle meshes of the link's component (for rendering and the simulator) and
+/// a loader for mesh files of any format assimp reads.
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "linksight/tracker/geometry.hpp"
+
+namespace linksight::sim {
+
+/// An indexed triangle mesh. Vertices in metres; each triangle lists three vertex
+/// indices counter-clockwise seen from outside (right-hand normal points outward).
+struct TriangleMesh {
+  std::vector<Eigen::Vector3f> vertices;
+  std::vector<Eigen::Vector3i> triangles;
+};
+
+/// The component's surface in its frame K (origin at the ball centre, +Z toward the
+/// next ball): a UV sphere of radius ball_radius plus a capsule of radius neck_radius
+/// around the segment (0,0,0)-(0,0,neck_length). Two separate closed, outward-oriented
+/// shells that overlap (their union is the component; fine for rendering). `segments`
+/// is the number of slices around each axis (>= 4); each hemisphere gets segments/4
+/// latitude bands. Throws std::invalid_argument for a bad geometry or segment count.
+[[nodiscard]] TriangleMesh component_mesh(const ComponentGeometry& geometry, int segments = 32);
+
+/// Writes `mesh` as Wavefront OBJ (v / f lines, 1-based), atomically. Each line of
+/// `comment` (if any) becomes a leading "# " line. Throws linksight::io::InputError
+/// naming the path when it cannot be written, std::invalid_argument for a triangle
+/// index out of range.
+void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh,
+               const std::string& comment = {});
+
+/// Loads any mesh file assimp reads (triangulated, identical vertices joined), merging
+/// all meshes of the scene with their node transforms applied. Throws
+/// linksight::io::InputError("<file>: <problem>") when assimp fails or the file holds
+/// no triangles.
+[[nodiscard]] TriangleMesh load_mesh(const std::filesystem::path& path);
+
+}  // namespace linksight::sim

@@ -1,0 +1,155 @@
+#include "linksight/sim/mesh.hpp"
+
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <array>
+#include <assimp/Importer.hpp>
+#include <cmath>
+#include <iomanip>
+#include <numbers>
+#include <ostream>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "linksight/io/atomic_file.hpp"
+#include "linksight/io/error.hpp"
+
+namespace linksight::sim {
+namespace {
+
+/// One latitude ring of a surface of revolution about Z: ring radius and height.
+struct Ring {
+  double rho;
+  double z;
+};
+
+/// Cos/sin with the tiny residues at multiples of pi/2 snapped to zero, so the OBJ
+/// file shows 0 rather than 1e-19.
+double snap(double v) { return std::abs(v) < 1e-12 ? 0.0 : v; }
+
+/// Appends the closed surface of revolution with poles at (0,0,z_bottom) and
+/// (0,0,z_top) and the given interior rings (bottom to top), `slices` around Z,
+/// triangles oriented outward.
+void append_lathe(TriangleMesh& mesh, double z_bottom, double z_top, const std::vector<Ring>& rings,
+                  int slices) {
+  const int base = static_cast<int>(mesh.vertices.size());
+  const int n_rings = static_cast<int>(rings.size());
+  const int bottom = base;
+  const int top = base + 1 + n_rings * slices;
+  mesh.vertices.emplace_back(0.0F, 0.0F, static_cast<float>(z_bottom));
+  for (const Ring& ring : rings) {
+    for (int j = 0; j < slices; ++j) {
+      const double phi = 2.0 * std::numbers::pi * j / slices;
+      mesh.vertices.emplace_back(static_cast<float>(snap(std::cos(phi)) * ring.rho),
+                                 static_cast<float>(snap(std::sin(phi)) * ring.rho),
+                                 static_cast<float>(ring.z));
+    }
+  }
+  mesh.vertices.emplace_back(0.0F, 0.0F, static_cast<float>(z_top));
+  const auto at = [&](int ring, int j) { return base + 1 + ring * slices + (j % slices); };
+  for (int j = 0; j < slices; ++j) mesh.triangles.emplace_back(bottom, at(0, j + 1), at(0, j));
+  for (int i = 0; i + 1 < n_rings; ++i) {
+    for (int j = 0; j < slices; ++j) {
+      const int a = at(i, j), b = at(i, j + 1), c = at(i + 1, j + 1), d = at(i + 1, j);
+      mesh.triangles.emplace_back(a, b, c);
+      mesh.triangles.emplace_back(a, c, d);
+    }
+  }
+  for (int j = 0; j < slices; ++j)
+    mesh.triangles.emplace_back(at(n_rings - 1, j), at(n_rings - 1, j + 1), top);
+}
+
+/// Interior rings of a capsule of radius `radius` around (0,0,z0)-(0,0,z1), each
+/// hemisphere in `bands` latitude bands; a sphere when z0 == z1.
+std::vector<Ring> capsule_rings(double radius, double z0, double z1, int bands) {
+  std::vector<Ring> rings;
+  for (int k = 1; k <= bands; ++k) {  // bottom hemisphere, up to its equator at z0
+    const double theta = std::numbers::pi / 2.0 * k / bands;  // from the bottom pole
+    rings.push_back({snap(std::sin(theta)) * radius, z0 - snap(std::cos(theta)) * radius});
+  }
+  for (int k = z1 > z0 ? 0 : 1; k < bands; ++k) {  // top hemisphere, from its equator at z1
+    const double theta = std::numbers::pi / 2.0 * k / bands;  // from the equator
+    rings.push_back({snap(std::cos(theta)) * radius, z1 + snap(std::sin(theta)) * radius});
+  }
+  return rings;
+}
+
+void append_mesh(TriangleMesh& out, const aiScene& scene, const aiNode& node,
+                 const aiMatrix4x4& parent) {
+  const aiMatrix4x4 transform = parent * node.mTransformation;
+  for (unsigned m = 0; m < node.mNumMeshes; ++m) {
+    const aiMesh& mesh = *scene.mMeshes[node.mMeshes[m]];
+    const int base = static_cast<int>(out.vertices.size());
+    for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+      const aiVector3D p = transform * mesh.mVertices[v];
+      out.vertices.emplace_back(p.x, p.y, p.z);
+    }
+    for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
+      const aiFace& face = mesh.mFaces[f];
+      if (face.mNumIndices != 3) continue;  // points and lines
+      out.triangles.emplace_back(base + static_cast<int>(face.mIndices[0]),
+                                 base + static_cast<int>(face.mIndices[1]),
+                                 base + static_cast<int>(face.mIndices[2]));
+    }
+  }
+  for (unsigned c = 0; c < node.mNumChildren; ++c)
+    append_mesh(out, scene, *node.mChildren[c], transform);
+}
+
+}  // namespace
+
+TriangleMesh component_mesh(const ComponentGeometry& geometry, int segments) {
+  geometry.validate();
+  if (segments < 4)
+    throw std::invalid_argument("segments = " + std::to_string(segments) + ": must be >= 4");
+  const int bands = segments / 4;
+  const double r = geometry.ball_radius;
+  const double rn = geometry.neck_radius;
+  const double len = geometry.neck_length;
+  TriangleMesh mesh;
+  append_lathe(mesh, -r, r, capsule_rings(r, 0.0, 0.0, bands), segments);
+  append_lathe(mesh, -rn, len + rn, capsule_rings(rn, 0.0, len, bands), segments);
+  return mesh;
+}
+
+void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh,
+               const std::string& comment) {
+  const auto n = static_cast<long long>(mesh.vertices.size());
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      if (t[k] < 0 || t[k] >= n)
+        throw std::invalid_argument("write_obj: triangle index " + std::to_string(t[k]) +
+                                    " out of range [0, " + std::to_string(n) + ")");
+    }
+  }
+  io::write_file_atomic(path, [&](std::ostream& out) {
+    if (!comment.empty()) {
+      std::istringstream lines(comment);
+      for (std::string line; std::getline(lines, line);) out << "# " << line << '\n';
+    }
+    out << std::fixed << std::setprecision(9);
+    for (const Eigen::Vector3f& v : mesh.vertices) {
+      out << "v " << static_cast<double>(v.x()) << ' ' << static_cast<double>(v.y()) << ' '
+          << static_cast<double>(v.z()) << '\n';
+    }
+    for (const Eigen::Vector3i& t : mesh.triangles)
+      out << "f " << t[0] + 1 << ' ' << t[1] + 1 << ' ' << t[2] + 1 << '\n';
+  });
+}
+
+TriangleMesh load_mesh(const std::filesystem::path& path) {
+  Assimp::Importer importer;
+  const aiScene* scene =
+      importer.ReadFile(path.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices);
+  if (scene == nullptr) throw io::InputError(path.string() + ": " + importer.GetErrorString());
+  if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0 || scene->mRootNode == nullptr)
+    throw io::InputError(path.string() + ": incomplete scene");
+  TriangleMesh mesh;
+  append_mesh(mesh, *scene, *scene->mRootNode, aiMatrix4x4());
+  if (mesh.triangles.empty()) throw io::InputError(path.string() + ": no triangles");
+  return mesh;
+}
+
+}  // namespace linksight::sim

@@ -1,0 +1,206 @@
+// The component mesh: two closed, outward-oriented shells (ball, neck capsule) whose
+// volumes and extent match ComponentGeometry; the committed meshes/component.obj is
+// current; load_mesh reports bad files as InputError naming the file.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <numeric>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "linksight/io/error.hpp"
+#include "linksight/sim/mesh.hpp"
+
+namespace linksight::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kBoxTolerance = 0.5e-3;  // bounding box within 0.5 mm
+
+/// Signed volume [m^3] of the triangles in `tris` (positive when outward-oriented).
+double signed_volume(const TriangleMesh& m, const std::vector<Eigen::Vector3i>& tris) {
+  double v = 0;
+  for (const Eigen::Vector3i& t : tris) {
+    const Eigen::Vector3d a = m.vertices[t[0]].cast<double>();
+    const Eigen::Vector3d b = m.vertices[t[1]].cast<double>();
+    const Eigen::Vector3d c = m.vertices[t[2]].cast<double>();
+    v += a.dot(b.cross(c)) / 6.0;
+  }
+  return v;
+}
+
+/// Triangles grouped by connected component of the vertex graph (the mesh's parts).
+std::vector<std::vector<Eigen::Vector3i>> parts(const TriangleMesh& m) {
+  std::vector<int> parent(m.vertices.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto find = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (const Eigen::Vector3i& t : m.triangles) {
+    parent[find(t[1])] = find(t[0]);
+    parent[find(t[2])] = find(t[0]);
+  }
+  std::map<int, std::vector<Eigen::Vector3i>> by_root;
+  for (const Eigen::Vector3i& t : m.triangles) by_root[find(t[0])].push_back(t);
+  std::vector<std::vector<Eigen::Vector3i>> out;
+  for (auto& [root, tris] : by_root) out.push_back(std::move(tris));
+  return out;
+}
+
+/// Closed and consistently oriented: every directed edge occurs exactly once and its
+/// reverse exactly once, so every undirected edge is shared by exactly two triangles.
+void expect_closed_oriented(const std::vector<Eigen::Vector3i>& tris) {
+  std::map<std::pair<int, int>, int> directed;
+  for (const Eigen::Vector3i& t : tris) {
+    for (int k = 0; k < 3; ++k) ++directed[{t[k], t[(k + 1) % 3]}];
+  }
+  int bad = 0;
+  for (const auto& [edge, n] : directed) {
+    const auto reverse = directed.find({edge.second, edge.first});
+    if (n != 1 || reverse == directed.end() || reverse->second != 1) ++bad;
+  }
+  EXPECT_EQ(bad, 0) << "edges not shared by exactly two consistently oriented triangles";
+}
+
+double ball_volume(const ComponentGeometry& g) {
+  return 4.0 / 3.0 * std::numbers::pi * std::pow(g.ball_radius, 3);
+}
+
+double neck_volume(const ComponentGeometry& g) {
+  const double rn = g.neck_radius;
+  return std::numbers::pi * rn * rn * g.neck_length + 4.0 / 3.0 * std::numbers::pi * rn * rn * rn;
+}
+
+TEST(ComponentMesh, EachPartIsClosedAndOutwardOriented) {
+  const ComponentGeometry g;
+  for (int segments : {4, 7, 32, 64}) {
+    SCOPED_TRACE("segments = " + std::to_string(segments));
+    const TriangleMesh m = component_mesh(g, segments);
+    for (const Eigen::Vector3i& t : m.triangles) {
+      for (int k = 0; k < 3; ++k) {
+        ASSERT_GE(t[k], 0);
+        ASSERT_LT(t[k], static_cast<int>(m.vertices.size()));
+      }
+    }
+    const auto shells = parts(m);
+    ASSERT_EQ(shells.size(), 2U);  // ball and neck
+    for (const auto& tris : shells) {
+      expect_closed_oriented(tris);
+      EXPECT_GT(signed_volume(m, tris), 0.0);
+    }
+  }
+}
+
+TEST(ComponentMesh, VolumeMatchesAnalyticWithinTwoPercent) {
+  const ComponentGeometry g;
+  const TriangleMesh m = component_mesh(g, 64);
+  const double analytic = ball_volume(g) + neck_volume(g);  // separate shells: volumes add
+  EXPECT_NEAR(signed_volume(m, m.triangles), analytic, 0.02 * analytic);
+  // Each shell on its own, too (the larger one is the ball).
+  auto shells = parts(m);
+  ASSERT_EQ(shells.size(), 2U);
+  std::vector<double> v{signed_volume(m, shells[0]), signed_volume(m, shells[1])};
+  std::sort(v.begin(), v.end());
+  EXPECT_NEAR(v[1], ball_volume(g), 0.02 * ball_volume(g));
+  EXPECT_NEAR(v[0], neck_volume(g), 0.02 * neck_volume(g));
+}
+
+TEST(ComponentMesh, BoundingBoxMatchesGeometry) {
+  const ComponentGeometry g;
+  for (int segments : {32, 64}) {
+    SCOPED_TRACE("segments = " + std::to_string(segments));
+    const TriangleMesh m = component_mesh(g, segments);
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+    for (const Eigen::Vector3f& v : m.vertices) {
+      lo = lo.cwiseMin(v.cast<double>());
+      hi = hi.cwiseMax(v.cast<double>());
+    }
+    const double r = g.ball_radius;
+    const double top = std::max(r, g.neck_length + g.neck_radius);
+    EXPECT_LE((lo - Eigen::Vector3d(-r, -r, -r)).cwiseAbs().maxCoeff(), kBoxTolerance)
+        << lo.transpose();
+    EXPECT_LE((hi - Eigen::Vector3d(r, r, top)).cwiseAbs().maxCoeff(), kBoxTolerance)
+        << hi.transpose();
+  }
+}
+
+TEST(ComponentMesh, ZeroNeckLengthGivesASphericalNeck) {
+  ComponentGeometry g;
+  g.neck_length = 0;
+  const TriangleMesh m = component_mesh(g, 16);
+  const auto shells = parts(m);
+  ASSERT_EQ(shells.size(), 2U);
+  for (const auto& tris : shells) expect_closed_oriented(tris);
+}
+
+TEST(ComponentMesh, RejectsBadInput) {
+  EXPECT_THROW((void)component_mesh(ComponentGeometry{}, 3), std::invalid_argument);
+  ComponentGeometry g;
+  g.neck_radius = -1;
+  EXPECT_THROW((void)component_mesh(g), std::invalid_argument);
+}
+
+TEST(ComponentMesh, ObjRoundTripsThroughAssimp) {
+  const fs::path dir = fs::temp_directory_path() / "linksight_test_mesh_roundtrip";
+  fs::create_directories(dir);
+  const TriangleMesh m = component_mesh(ComponentGeometry{}, 16);
+  write_obj(dir / "c.obj", m, "two\ncomment lines");
+  const TriangleMesh loaded = load_mesh(dir / "c.obj");
+  ASSERT_EQ(loaded.vertices.size(), m.vertices.size());
+  EXPECT_EQ(loaded.triangles.size(), m.triangles.size());
+  EXPECT_NEAR(signed_volume(loaded, loaded.triangles), signed_volume(m, m.triangles), 1e-9);
+  fs::remove_all(dir);
+}
+
+TEST(CommittedMesh, LoadsWithAssimpAndIsCurrent) {
+  const fs::path path = fs::path(LINKSIGHT_MESH_DIR) / "component.obj";
+  const TriangleMesh committed = load_mesh(path);
+  const TriangleMesh fresh = component_mesh(ComponentGeometry{});
+  EXPECT_EQ(committed.vertices.size(), fresh.vertices.size())
+      << path << " is stale: regenerate with build/tools/linksight meshes --out meshes";
+  EXPECT_EQ(committed.triangles.size(), fresh.triangles.size());
+  const double v = signed_volume(fresh, fresh.triangles);
+  EXPECT_NEAR(signed_volume(committed, committed.triangles), v, 1e-3 * v);
+}
+
+TEST(LoadMesh, MissingFileThrowsInputErrorNamingTheFile) {
+  const std::string path = (fs::temp_directory_path() / "linksight_no_such_mesh.obj").string();
+  try {
+    (void)load_mesh(path);
+    FAIL() << "no exception";
+  } catch (const io::InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0U) << e.what();
+  }
+}
+
+TEST(LoadMesh, GarbageFileThrowsInputErrorNamingTheFile) {
+  const fs::path dir = fs::temp_directory_path() / "linksight_test_mesh_garbage";
+  fs::create_directories(dir);
+  for (const char* name : {"garbage.obj", "garbage.stl", "garbage.bin"}) {
+    SCOPED_TRACE(name);
+    const std::string path = (dir / name).string();
+    {
+      std::ofstream out(path, std::ios::binary);
+      for (int i = 0; i < 256; ++i) out.put(static_cast<char>((i * 37 + 11) % 256));
+    }
+    try {
+      (void)load_mesh(path);
+      ADD_FAILURE() << "no exception";
+    } catch (const io::InputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0U) << e.what();
+    }
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace linksight::sim
