@@ -99,6 +99,8 @@ struct World::Impl {
   std::unique_ptr<btMultiBodyDynamicsWorld> world;
   std::unique_ptr<btMultiBody> body;
   std::unique_ptr<btSphereShape> ball_shape, dummy_shape;
+  std::unique_ptr<btCapsuleShapeX> neck_shape;
+  std::unique_ptr<btCompoundShape> component_shape;  // ball + neck, from ComponentGeometry
   std::vector<std::unique_ptr<btMultiBodyLinkCollider>> colliders;
   std::vector<std::unique_ptr<btMultiBodyJointMotor>> motors;
   std::vector<std::unique_ptr<btMultiBodyJointLimitConstraint>> limits;
@@ -172,11 +174,23 @@ World::World(const ChainParams& chain, const WorldParams& params, const Eigen::I
   s.body->setHasSelfCollision(false);
   s.world->addMultiBody(s.body.get());
 
-  s.ball_shape = std::make_unique<btSphereShape>(r);
+  s.ball_shape = std::make_unique<btSphereShape>(static_cast<btScalar>(r));
+  // Collision from primitives: the ball, and the neck as a capsule along the link's +x
+  // (the component's Z) from the centre to neck_length.
+  s.component_shape = std::make_unique<btCompoundShape>();
+  s.component_shape->addChildShape(btTransform::getIdentity(), s.ball_shape.get());
+  if (g.neck_length > 0) {
+    s.neck_shape = std::make_unique<btCapsuleShapeX>(static_cast<btScalar>(g.neck_radius),
+                                                     static_cast<btScalar>(g.neck_length));
+    btTransform at_mid = btTransform::getIdentity();
+    at_mid.setOrigin(btVector3(static_cast<btScalar>(g.neck_length / 2), 0, 0));
+    s.component_shape->addChildShape(at_mid, s.neck_shape.get());
+  }
   s.dummy_shape = std::make_unique<btSphereShape>(kDummyRadius);
   for (int i = 0; i < n_links; ++i) {
     auto col = std::make_unique<btMultiBodyLinkCollider>(s.body.get(), i);
-    col->setCollisionShape(i % 3 == 2 ? s.ball_shape.get() : s.dummy_shape.get());
+    col->setCollisionShape(i % 3 == 2 ? static_cast<btCollisionShape*>(s.component_shape.get())
+                                      : s.dummy_shape.get());
     s.world->addCollisionObject(col.get(), kChainGroup, kEnvironmentGroup);
     s.body->getLink(i).m_collider = col.get();
     s.colliders.push_back(std::move(col));
