@@ -175,7 +175,16 @@ Scene load_scene(const std::filesystem::path& path) {
   }
   if (const YAML::Node b = root["base"]) s.base = r.trajectory(b, "base");
   if (const YAML::Node a = root["actions"]) {
-    r.only(a, "actions", {"forces", "pushers", "obstacles"});
+    r.only(a, "actions", {"forces", "gravity", "pushers", "obstacles"});
+    if (const YAML::Node gv = a["gravity"]) {
+      if (!gv.IsSequence()) r.fail(gv, "actions.gravity", "expected a list");
+      for (std::size_t i = 0; i < gv.size(); ++i) {
+        const std::string at = "actions.gravity[" + std::to_string(i) + "]";
+        r.only(gv[i], at, {"t_s", "on"});
+        s.gravity_switches.push_back(
+            {r.number(gv[i], at, "t_s", 0.0, 0.0, 1e6), r.boolean(gv[i], at, "on", true)});
+      }
+    }
     if (const YAML::Node f = a["forces"]) {
       for (std::size_t i = 0; i < f.size(); ++i) {
         const std::string at = "actions.forces[" + std::to_string(i) + "]";
@@ -227,6 +236,7 @@ std::unique_ptr<World> make_world(const Scene& scene) {
   auto w = std::make_unique<World>(scene.chain, scene.world, scene.base.pose(0.0));
   w->set_base_trajectory(scene.base);
   for (const auto& f : scene.forces) w->add_force(f);
+  for (const auto& g : scene.gravity_switches) w->add_gravity_switch(g);
   for (const auto& p : scene.pushers) w->add_pusher(p);
   for (const auto& o : scene.obstacles) w->add_obstacle(o);
   return w;

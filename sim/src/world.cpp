@@ -105,6 +105,7 @@ struct World::Impl {
   std::vector<std::unique_ptr<btMultiBodyJointMotor>> motors;
   std::vector<std::unique_ptr<btMultiBodyJointLimitConstraint>> limits;
   std::vector<ForceAction> actions;
+  std::vector<GravityAction> gravity_switches;
   BaseTrajectory trajectory;
   bool has_trajectory = false;
   struct Kinematic {
@@ -307,6 +308,11 @@ double World::max_bend() const {
   return worst;
 }
 
+void World::add_gravity_switch(const GravityAction& action) {
+  if (!std::isfinite(action.t)) throw std::invalid_argument("GravityAction.t: must be finite");
+  impl_->gravity_switches.push_back(action);
+}
+
 void World::add_force(const ForceAction& action) {
   if (action.component < 0 || action.component >= impl_->chain.geometry.count) {
     throw std::invalid_argument("ForceAction.component = " + std::to_string(action.component) +
@@ -327,6 +333,12 @@ void World::step() {
   Impl& s = *impl_;
   const double t = time();
   const double t_next = t + s.params.dt;
+  for (const GravityAction& gs : s.gravity_switches) {
+    // Switches take effect in the step that contains their time.
+    if (gs.t >= t && gs.t < t_next) {
+      s.world->setGravity(btVector3(0, 0, gs.on ? -static_cast<btScalar>(s.params.g) : 0));
+    }
+  }
   for (const ForceAction& a : s.actions) {
     if (t >= a.t_start && t < a.t_end) {
       s.body->addLinkForce(3 * a.component + 2, bt(a.force_W));

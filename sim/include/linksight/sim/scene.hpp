@@ -20,6 +20,7 @@ struct Scene {
   WorldParams world;
   BaseTrajectory base;  ///< pose of the base over time (default: identity)
   std::vector<ForceAction> forces;
+  std::vector<GravityAction> gravity_switches;
   std::vector<PusherParams> pushers;
   std::vector<ObstacleParams> obstacles;
 };

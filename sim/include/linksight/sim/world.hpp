@@ -48,6 +48,12 @@ struct ForceAction {
   double t_start = 0.0, t_end = 0.0;                   ///< [s], active on [t_start, t_end)
 };
 
+/// Gravity switched on or off at a time.
+struct GravityAction {
+  double t = 0.0;  ///< [s]
+  bool on = true;
+};
+
 /// A kinematic pusher: a sphere (length 0) or a capsule along its local z, moved along a
 /// scripted pose path, pressing on whatever it meets.
 struct PusherParams {
@@ -91,6 +97,7 @@ class World {
   /// its velocity enters contacts, its acceleration does not load the joints.
   void set_base_trajectory(const BaseTrajectory& trajectory);
   void add_force(const ForceAction& action);  ///< validates the action (throws)
+  void add_gravity_switch(const GravityAction& action);
   void add_pusher(const PusherParams& pusher);
   void add_obstacle(const ObstacleParams& obstacle);
   /// Largest bend between neighbours (or of component 0 against the base) now [rad].
