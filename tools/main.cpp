@@ -12,23 +12,26 @@ int main(int argc, char** argv) {
       "linksight: shape tracking of a deformable link (SOM, Li et al.) with a "
       "synthetic test harness.\nExit codes: 0 ok, 2 bad input or usage, 1 internal error."};
   app.require_subcommand(1);
+  struct Subcommand {
+    const char* name;
+    const char* help;
+    Runner (*add)(CLI::App&);
+  };
+  const Subcommand subcommands[] = {
+      {"track", "Track the link through a sequence of clouds (PLY or 16-bit depth PNG).",
+       add_track},
+      {"synth", "Write a synthetic cloud sequence of the link with its true nodes.", add_synth},
+      {"simulate", "Run a scene's physics and write the true nodes at the camera rate.",
+       add_simulate},
+      {"devices", "List every OpenCL platform and device, and what the opencl back end needs.",
+       add_devices},
+      {"meshes", "Write the component's triangle mesh (component.obj, metres, frame K).",
+       add_meshes},
+  };
   std::map<const CLI::App*, Runner> runners;
-  {
-    CLI::App* track = app.add_subcommand(
-        "track", "Track the link through a sequence of clouds (PLY or 16-bit depth PNG).");
-    runners[track] = add_track(*track);
-    CLI::App* synth = app.add_subcommand(
-        "synth", "Write a synthetic cloud sequence of the link with its true nodes.");
-    runners[synth] = add_synth(*synth);
-    CLI::App* simulate = app.add_subcommand(
-        "simulate", "Run a scene's physics and write the true nodes at the camera rate.");
-    runners[simulate] = add_simulate(*simulate);
-    CLI::App* devices = app.add_subcommand(
-        "devices", "List every OpenCL platform and device, and what the opencl back end needs.");
-    runners[devices] = add_devices(*devices);
-    CLI::App* meshes = app.add_subcommand(
-        "meshes", "Write the component's triangle mesh (component.obj, metres, frame K).");
-    runners[meshes] = add_meshes(*meshes);
+  for (const Subcommand& c : subcommands) {
+    CLI::App* sub = app.add_subcommand(c.name, c.help);
+    runners[sub] = c.add(*sub);
   }
   try {
     app.parse(argc, argv);

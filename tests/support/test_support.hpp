@@ -16,9 +16,6 @@
 
 namespace linksight::test {
 
-/// Back ends must agree with the serial reference to this [m].
-inline constexpr double kBackendTolerance = 1e-6;
-
 /// A cloud's finite points as separate arrays, for the functions that take PointsView.
 struct Soa {
   std::vector<float> x, y, z;
@@ -60,6 +57,12 @@ inline std::vector<BackendCase> all_backends() {
           {BackendKind::openmp},
           {BackendKind::opencl, ClAccumulation::reduction},
           {BackendKind::opencl, ClAccumulation::atomic}};
+}
+/// Every back end but the serial reference.
+inline std::vector<BackendCase> other_backends() {
+  auto all = all_backends();
+  all.erase(all.begin());
+  return all;
 }
 inline std::string case_name(const BackendCase& c) {
   std::string n(to_string(c.kind));

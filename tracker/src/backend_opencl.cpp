@@ -111,22 +111,24 @@ std::vector<cl_device_id> devices_of(cl_platform_id p) {
   return ids;
 }
 
-std::string platform_string(cl_platform_id p, cl_platform_info what) {
+// A string property of an OpenCL object: ask for the size, then the bytes.
+template <class Object, class Info>
+std::string info_string(cl_int (*get)(Object, Info, std::size_t, void*, std::size_t*), Object o,
+                        Info what, const char* name) {
   std::size_t size = 0;
-  check(clGetPlatformInfo(p, what, 0, nullptr, &size), "clGetPlatformInfo");
+  check(get(o, what, 0, nullptr, &size), name);
   std::string s(size, '\0');
-  check(clGetPlatformInfo(p, what, size, s.data(), nullptr), "clGetPlatformInfo");
+  check(get(o, what, size, s.data(), nullptr), name);
   while (!s.empty() && s.back() == '\0') s.pop_back();
   return s;
 }
 
+std::string platform_string(cl_platform_id p, cl_platform_info what) {
+  return info_string(clGetPlatformInfo, p, what, "clGetPlatformInfo");
+}
+
 std::string device_string(cl_device_id d, cl_device_info what) {
-  std::size_t size = 0;
-  check(clGetDeviceInfo(d, what, 0, nullptr, &size), "clGetDeviceInfo");
-  std::string s(size, '\0');
-  check(clGetDeviceInfo(d, what, size, s.data(), nullptr), "clGetDeviceInfo");
-  while (!s.empty() && s.back() == '\0') s.pop_back();
-  return s;
+  return info_string(clGetDeviceInfo, d, what, "clGetDeviceInfo");
 }
 
 template <class T>
