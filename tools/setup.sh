@@ -19,6 +19,7 @@ packages=(
   libbullet-dev             # sim/: the chain's physics
   libyaml-cpp-dev           # scene files
   libassimp-dev             # sim/: mesh files (load_mesh)
+  libembree-dev             # sim/: ray casting for the simulated depth camera
   zlib1g-dev                # assimp's CMake package links libz.so, which --no-install-recommends leaves out
 )
 

@@ -114,6 +114,42 @@ TriangleMesh component_mesh(const ComponentGeometry& geometry, int segments) {
   return mesh;
 }
 
+TriangleMesh box_mesh(const Eigen::Vector3d& h) {
+  if (!(h.minCoeff() > 0) || !h.allFinite())
+    throw std::invalid_argument("box half extents must all be > 0");
+  TriangleMesh mesh;
+  for (int i = 0; i < 8; ++i) {
+    mesh.vertices.emplace_back(static_cast<float>((i & 1) ? h.x() : -h.x()),
+                               static_cast<float>((i & 2) ? h.y() : -h.y()),
+                               static_cast<float>((i & 4) ? h.z() : -h.z()));
+  }
+  // Two triangles per face, counter-clockwise seen from outside.
+  const int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                           {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& f : faces) {
+    mesh.triangles.emplace_back(f[0], f[1], f[2]);
+    mesh.triangles.emplace_back(f[0], f[2], f[3]);
+  }
+  return mesh;
+}
+
+TriangleMesh cylinder_mesh(double radius, double half_length, int slices) {
+  if (!(radius > 0) || !(half_length > 0) || slices < 3)
+    throw std::invalid_argument("cylinder: need radius > 0, half_length > 0, slices >= 3");
+  TriangleMesh mesh;
+  append_lathe(mesh, -half_length, half_length, {{radius, -half_length}, {radius, half_length}},
+               slices);
+  return mesh;
+}
+
+TriangleMesh sphere_mesh(double radius, int segments) {
+  if (!(radius > 0) || segments < 4)
+    throw std::invalid_argument("sphere: need radius > 0 and segments >= 4");
+  TriangleMesh mesh;
+  append_lathe(mesh, -radius, radius, capsule_rings(radius, 0.0, 0.0, segments / 4), segments);
+  return mesh;
+}
+
 void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh,
                const std::string& comment) {
   const auto n = static_cast<long long>(mesh.vertices.size());

@@ -26,6 +26,13 @@ struct TriangleMesh {
 /// latitude bands. Throws std::invalid_argument for a bad geometry or segment count.
 [[nodiscard]] TriangleMesh component_mesh(const ComponentGeometry& geometry, int segments = 32);
 
+/// A box centred at the origin with the given half extents [m] (12 triangles).
+[[nodiscard]] TriangleMesh box_mesh(const Eigen::Vector3d& half_extents);
+/// A closed cylinder around the z axis from -half_length to +half_length [m].
+[[nodiscard]] TriangleMesh cylinder_mesh(double radius, double half_length, int slices = 48);
+/// A UV sphere centred at the origin; `segments` slices, segments/4 bands per hemisphere.
+[[nodiscard]] TriangleMesh sphere_mesh(double radius, int segments = 48);
+
 /// Writes `mesh` as Wavefront OBJ (v / f lines, 1-based), atomically. Each line of
 /// `comment` (if any) becomes a leading "# " line. Throws linksight::io::InputError
 /// naming the path when it cannot be written, std::invalid_argument for a triangle

@@ -1,0 +1,37 @@
+#pragma once
+/// @file The simulated depth camera: intrinsics, range, rate and pose X_WC.
+
+#include <Eigen/Geometry>
+
+#include "linksight/io/intrinsics.hpp"
+
+namespace linksight::sim {
+
+/// Intrinsics of an Intel RealSense SR300 depth stream at 640x480: fx = fy = 473,
+/// (cx, cy) = (310, 245) px (about 68 x 54 degrees field of view), depth unit 1/8 mm.
+/// Source: the SR300 datasheet's 640x480 depth mode and the intrinsics RealSense reports
+/// for SR300/SR305 units (see tests/data/sr305/intrinsics.json). No distortion by
+/// default; `inverse_brown_conrady` is available in io::Intrinsics.
+[[nodiscard]] io::Intrinsics sr300_intrinsics();
+
+/// Pose of a camera at `eye_W` looking at `target_W`, with image "up" (-y of C) as close
+/// to `up_W` as possible. Camera frame C: x right, y down, z forward. Throws
+/// std::invalid_argument when eye == target or the view direction is parallel to up.
+[[nodiscard]] Eigen::Isometry3d look_at(const Eigen::Vector3d& eye_W,
+                                        const Eigen::Vector3d& target_W,
+                                        const Eigen::Vector3d& up_W = Eigen::Vector3d::UnitZ());
+
+struct CameraParams {
+  io::Intrinsics intrinsics = sr300_intrinsics();
+  /// Pose of the camera C in the world W. Default: 0.6 m in front of a chain that leaves
+  /// a base at (0, 0, 0.5) along +x, looking at its middle.
+  Eigen::Isometry3d X_WC = look_at({0.25, -0.6, 0.6}, {0.25, 0.0, 0.45});
+  double fps = 30.0;   ///< frame rate [1/s] (SR300: 30 or 60)
+  double z_min = 0.2;  ///< nearest valid depth [m] (SR300: 0.2)
+  double z_max = 1.5;  ///< farthest valid depth [m] (SR300: 1.5)
+  /// Throws std::invalid_argument naming the field (fx <= 0, zero resolution,
+  /// z_min >= z_max, a non-rigid X_WC, ...).
+  void validate() const;
+};
+
+}  // namespace linksight::sim

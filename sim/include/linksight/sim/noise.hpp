@@ -1,0 +1,85 @@
+#pragma once
+/// @file The depth camera's noise and artefact model. Every term can be switched off;
+/// `NoiseParams::off()` is an ideal depth camera, `NoiseParams::sr300()` the default.
+/// Values marked "estimate" are not measured on an SR300 yet: calibrate them.
+
+#include <numbers>
+#include <string>
+
+namespace linksight::sim {
+
+/// Axial (along the optical axis) Gaussian noise:
+/// sigma_z(z, theta) = a + c z^2 + k_theta / sqrt(z) * theta^2 / (pi/2 - theta)^2,
+/// the form of Nguyen, Izadi & Lovell (3DIMPVT 2012, Eq. 5) with their constant terms
+/// replaced by a + c z^2. theta is the incidence angle at the camera.
+struct AxialNoise {
+  bool enabled = true;
+  double a = 0.0005;  ///< [m] (estimate: 0.5 mm)
+  double c = 0.0015;  ///< [1/m] (estimate: 1.5 mm/m^2)
+  /// [m^1.5]: Nguyen et al.'s angle coefficient for the Kinect (0.0001 m^1.5), an
+  /// estimate for the SR300.
+  double k_theta = 0.0001;
+  /// The angle term is evaluated at min(theta, theta_cap) so it stays finite [rad].
+  double theta_cap = 80.0 * std::numbers::pi / 180.0;
+  /// sigma_z [m] at depth z [m] and incidence theta [rad].
+  [[nodiscard]] double sigma(double z, double theta) const;
+};
+
+/// Sub-pixel jitter of each ray: its pixel coordinates get N(0, sigma_px^2) each.
+struct LateralNoise {
+  bool enabled = true;
+  double sigma_px = 0.5;  ///< [px] (estimate)
+};
+
+/// The projector of a structured-light camera sits at `baseline` along the camera's +x
+/// axis; a surface point it cannot light has no depth.
+struct ProjectorShadow {
+  bool enabled = true;
+  double baseline = 0.05;  ///< [m], signed (negative: projector on the camera's -x side)
+};
+
+/// Pixels the camera cannot decode.
+struct Dropouts {
+  bool enabled = true;
+  /// Incidence at the camera or at the projector above this loses the pixel [rad].
+  double max_incidence = 75.0 * std::numbers::pi / 180.0;
+  /// Low-signal proxy: reflectance * cos(theta_p) / z^2 [1/m^2] below this loses the
+  /// pixel. 0.1 keeps a reflectance-1 surface to 1.5 m up to about 76 degrees (estimate).
+  double min_signal = 0.1;
+  /// Random holes: on average `hole_rate` discs per frame, radius uniform in
+  /// [1, hole_radius_px] (estimate: a few small holes per frame).
+  double hole_rate = 5.0;
+  double hole_radius_px = 3.0;  ///< [px]
+};
+
+/// Depth discontinuities: a pixel whose 4-neighbour differs by more than `jump` in
+/// noise-free depth (or sees nothing) is an edge pixel. It is dropped with probability
+/// p_drop, else replaced with probability p_flying by a mix z_near + u (z_far - z_near),
+/// u ~ U(0, 1) (a "flying pixel").
+struct EdgeEffects {
+  bool enabled = true;
+  double jump = 0.02;     ///< [m]
+  double p_drop = 0.5;    ///< (estimate)
+  double p_flying = 0.2;  ///< (estimate)
+};
+
+struct NoiseParams {
+  AxialNoise axial;
+  LateralNoise lateral;
+  ProjectorShadow shadow;
+  Dropouts dropouts;
+  EdgeEffects edges;
+  bool quantize = true;  ///< round depth to the depth unit (SR300: 1/8 mm)
+
+  /// Every term off: the ideal camera (depth still in range and quantized to the unit
+  /// only when `quantize`; off() leaves quantization off too).
+  [[nodiscard]] static NoiseParams off();
+  /// The defaults above.
+  [[nodiscard]] static NoiseParams sr300();
+  /// "off" or "sr300"; throws std::invalid_argument naming the preset otherwise.
+  [[nodiscard]] static NoiseParams preset(const std::string& name);
+  /// Throws std::invalid_argument naming the field.
+  void validate() const;
+};
+
+}  // namespace linksight::sim

@@ -1,0 +1,110 @@
+#pragma once
+/// @file The simulated SR300: Embree casts the chain, occluders and background into a
+/// depth image with per-pixel labels, then the noise model adds the camera's errors.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+#include "linksight/io/depth_png.hpp"
+#include "linksight/sim/camera.hpp"
+#include "linksight/sim/mesh.hpp"
+#include "linksight/sim/noise.hpp"
+#include "linksight/sim/trajectory.hpp"
+#include "linksight/tracker/geometry.hpp"
+
+namespace linksight::sim {
+
+/// Label image values: component index 0..count-1, then these.
+inline constexpr std::uint8_t kLabelOccluder0 = 100;   ///< occluder k has 100 + k
+inline constexpr std::uint8_t kLabelBackground = 200;  ///< table, wall, clutter
+inline constexpr std::uint8_t kLabelNothing = 255;     ///< the ray hit nothing
+inline constexpr int kMaxOccluders = 99;
+
+/// A rigid shape in its own frame O (centred at the origin).
+struct Shape {
+  enum class Kind { box, cylinder, sphere, mesh };
+  Kind kind = Kind::box;
+  Eigen::Vector3d half_extents = Eigen::Vector3d(0.05, 0.05, 0.05);  ///< box [m]
+  double radius = 0.05;                  ///< cylinder (around z) and sphere [m]
+  double half_length = 0.05;             ///< cylinder, along z [m]
+  std::filesystem::path mesh;            ///< mesh: any file assimp reads
+  double scale = 1.0;                    ///< mesh: file units to metres
+  void validate() const;                 ///< throws std::invalid_argument naming the field
+  /// The triangles; throws linksight::io::InputError naming a missing or bad mesh file.
+  [[nodiscard]] TriangleMesh triangles() const;
+};
+
+/// Something between the camera and the link, moving along a scripted pose path.
+struct Occluder {
+  Shape shape;
+  BaseTrajectory path;       ///< pose X_WO over time
+  double reflectance = 1.0;  ///< for the low-signal dropout proxy
+};
+
+/// Static scenery: table, wall, clutter.
+struct BackgroundObject {
+  Shape shape;
+  Eigen::Isometry3d X_WO = Eigen::Isometry3d::Identity();
+  double reflectance = 1.0;
+};
+
+struct SensorParams {
+  CameraParams camera;
+  NoiseParams noise;
+  double chain_reflectance = 1.0;
+  int component_segments = 96;  ///< mesh resolution of a ball: 0.01 mm sagitta at r = 15 mm
+  int threads = 0;              ///< OpenMP threads; 0: the OpenMP default
+  void validate() const;        ///< throws std::invalid_argument naming the field
+};
+
+/// One rendered frame. Images are row-major, width x height.
+struct DepthFrame {
+  int width = 0, height = 0;
+  io::DepthImage depth;               ///< sensor units (intrinsics.depth_scale), 0 = none
+  std::vector<float> depth_m;         ///< [m], 0 = none (quantized when noise.quantize)
+  std::vector<float> depth_clean_m;   ///< noise-free depth along the cast ray [m], 0 = nothing hit
+  std::vector<std::uint8_t> label;    ///< what the ray hit (see kLabel*)
+  std::vector<float> incidence;       ///< incidence angle at the camera [rad], NaN where nothing hit
+  std::vector<int> visible_px;        ///< per component: pixels labelled with it
+  std::vector<int> visible_px_unoccluded;  ///< the same without occluders
+  /// Per component: 1 - visible / unoccluded (0 when not visible even without occluders).
+  std::vector<double> occluded_fraction;
+  double link_occluded_fraction = 0.0;  ///< the same over all components
+};
+
+/// Time of each stage of the last render [s].
+struct SensorTimes {
+  double scene = 0, cast = 0, occlusion = 0, noise = 0;
+};
+
+/// Owns the Embree device and scene. One chain (one mesh, `count` instances), the
+/// occluders and the background. Not thread-safe; render() is parallel inside.
+class Sensor {
+ public:
+  /// Throws std::invalid_argument for bad parameters, io::InputError for a missing mesh.
+  Sensor(const SensorParams& params, const ComponentGeometry& geometry,
+         std::vector<Occluder> occluders = {}, std::vector<BackgroundObject> background = {});
+  ~Sensor();
+  Sensor(const Sensor&) = delete;
+  Sensor& operator=(const Sensor&) = delete;
+
+  /// Renders the instant `t` [s]: component frames X_WK (count of them) [W], occluders
+  /// at their path poses. Noise draws come from (seed, frame) and the pixel index only,
+  /// so the result is the same for any thread count. Reuses `out`'s buffers.
+  void render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::uint64_t seed,
+              std::uint64_t frame, DepthFrame& out);
+  [[nodiscard]] DepthFrame render(const std::vector<Eigen::Isometry3d>& X_WK, double t,
+                                  std::uint64_t seed, std::uint64_t frame);
+
+  [[nodiscard]] const SensorParams& params() const;
+  [[nodiscard]] const SensorTimes& last_times() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace linksight::sim

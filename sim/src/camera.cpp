@@ -1,0 +1,52 @@
+#include "linksight/sim/camera.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace linksight::sim {
+
+io::Intrinsics sr300_intrinsics() {
+  io::Intrinsics k;
+  k.width = 640;
+  k.height = 480;
+  k.fx = k.fy = 473.0;
+  k.cx = 310.0;
+  k.cy = 245.0;
+  k.depth_scale = 0.000125;
+  return k;
+}
+
+Eigen::Isometry3d look_at(const Eigen::Vector3d& eye_W, const Eigen::Vector3d& target_W,
+                          const Eigen::Vector3d& up_W) {
+  const Eigen::Vector3d d = target_W - eye_W;
+  if (!(d.norm() > 1e-9)) throw std::invalid_argument("look_at: eye and target coincide");
+  const Eigen::Vector3d z = d.normalized();
+  const Eigen::Vector3d x = z.cross(up_W);  // image right = forward x up
+  if (!(x.norm() > 1e-9 * up_W.norm()) || !(up_W.norm() > 0))
+    throw std::invalid_argument("look_at: view direction is parallel to up");
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear().col(0) = x.normalized();
+  X.linear().col(2) = z;
+  X.linear().col(1) = z.cross(X.linear().col(0));  // y down
+  X.translation() = eye_W;
+  return X;
+}
+
+void CameraParams::validate() const {
+  intrinsics.validate();
+  if (!(fps > 0.0) || !std::isfinite(fps))
+    throw std::invalid_argument("camera fps = " + std::to_string(fps) + ": must be > 0");
+  if (!(z_min >= 0.0) || !(z_max > z_min) || !std::isfinite(z_max)) {
+    throw std::invalid_argument("camera depth range z_min = " + std::to_string(z_min) +
+                                " m, z_max = " + std::to_string(z_max) +
+                                " m: need 0 <= z_min < z_max < inf");
+  }
+  const Eigen::Matrix3d R = X_WC.linear();
+  if (!X_WC.matrix().allFinite() || !(R.transpose() * R).isIdentity(1e-6) ||
+      !(R.determinant() > 0)) {
+    throw std::invalid_argument("camera X_WC: rotation part is not a proper rotation");
+  }
+}
+
+}  // namespace linksight::sim

@@ -1,0 +1,574 @@
+#include "linksight/sim/sensor.hpp"
+
+#include <embree3/rtcore.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+#include "linksight/io/error.hpp"
+#include "linksight/tracker/seed.hpp"
+
+namespace linksight::sim {
+namespace {
+
+// Instance masks: the no-occluder label pass casts with kMaskScene only.
+constexpr unsigned kMaskScene = 1;
+constexpr unsigned kMaskOccluder = 2;
+constexpr int kPacket = 16;
+
+// Counter-based draws: a (key, stream) pair always gives the same number, whichever
+// thread asks, so noise does not depend on the thread count.
+double uniform(std::uint64_t key, std::uint64_t stream) {
+  return static_cast<double>(mix64(key + stream * 0xD1B54A32D192ED03ull) >> 11) * 0x1.0p-53;
+}
+// Two independent N(0, 1) draws (Box-Muller) from streams `stream` and `stream + 1`.
+Eigen::Vector2d normals(std::uint64_t key, std::uint64_t stream) {
+  const double u1 = 1.0 - uniform(key, stream);  // (0, 1]
+  const double u2 = uniform(key, stream + 1);
+  const double r = std::sqrt(-2.0 * std::log(u1));
+  return {r * std::cos(2.0 * std::numbers::pi * u2), r * std::sin(2.0 * std::numbers::pi * u2)};
+}
+enum Stream : std::uint64_t { kJitter = 0, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6 };
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void set_transform(RTCGeometry g, const Eigen::Isometry3d& X) {
+  float m[12];  // 3x4 column-major
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 3; ++r) m[c * 3 + r] = static_cast<float>(X.matrix()(r, c));
+  rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, m);
+}
+
+}  // namespace
+
+void Shape::validate() const {
+  switch (kind) {
+    case Kind::box:
+      if (!(half_extents.minCoeff() > 0) || !half_extents.allFinite())
+        throw std::invalid_argument("shape half_extents must all be > 0");
+      break;
+    case Kind::cylinder:
+      if (!(half_length > 0) || !std::isfinite(half_length))
+        throw std::invalid_argument("shape half_length = " + std::to_string(half_length) +
+                                    ": must be > 0");
+      [[fallthrough]];
+    case Kind::sphere:
+      if (!(radius > 0) || !std::isfinite(radius))
+        throw std::invalid_argument("shape radius = " + std::to_string(radius) + ": must be > 0");
+      break;
+    case Kind::mesh:
+      if (mesh.empty()) throw std::invalid_argument("shape mesh: no file given");
+      if (!(scale > 0) || !std::isfinite(scale))
+        throw std::invalid_argument("shape scale = " + std::to_string(scale) + ": must be > 0");
+      break;
+  }
+}
+
+TriangleMesh Shape::triangles() const {
+  validate();
+  switch (kind) {
+    case Kind::box:
+      return box_mesh(half_extents);
+    case Kind::cylinder:
+      return cylinder_mesh(radius, half_length);
+    case Kind::sphere:
+      return sphere_mesh(radius);
+    case Kind::mesh: {
+      std::error_code ec;
+      if (!std::filesystem::is_regular_file(mesh, ec))
+        throw io::InputError(mesh.string() + ": mesh file not found");
+      TriangleMesh m = load_mesh(mesh);
+      for (Eigen::Vector3f& v : m.vertices) v *= static_cast<float>(scale);
+      return m;
+    }
+  }
+  throw std::invalid_argument("shape: unknown kind");
+}
+
+void SensorParams::validate() const {
+  camera.validate();
+  noise.validate();
+  if (!(chain_reflectance >= 0) || !std::isfinite(chain_reflectance))
+    throw std::invalid_argument("sensor chain_reflectance = " + std::to_string(chain_reflectance) +
+                                ": must be >= 0");
+  if (component_segments < 4 || component_segments > 1024)
+    throw std::invalid_argument("sensor component_segments = " +
+                                std::to_string(component_segments) + ": must be in [4, 1024]");
+  if (threads < 0)
+    throw std::invalid_argument("sensor threads = " + std::to_string(threads) + ": must be >= 0");
+}
+
+struct Sensor::Impl {
+  SensorParams p;
+  int count = 0;
+  std::vector<Occluder> occluders;
+  RTCDevice device = nullptr;
+  RTCScene top = nullptr;
+  std::vector<RTCScene> subscenes;
+  std::vector<RTCGeometry> chain;      // instance handles (owned)
+  std::vector<RTCGeometry> occluding;  // instance handles (owned)
+  std::vector<RTCGeometry> statics;    // instance handles (owned)
+  std::vector<unsigned> chain_id, occluder_id, static_id;  // their IDs in `top`
+  // By instance ID in `top`:
+  std::vector<std::uint8_t> label_of;
+  std::vector<Eigen::Matrix3f> R_of;
+  std::vector<float> reflectance_of;
+  // Per-pixel scratch, kept between frames.
+  std::vector<float> cos_p;
+  std::vector<std::uint8_t> lit, hole, label_no_occluders;
+  SensorTimes times;
+
+  ~Impl() {
+    for (RTCGeometry g : chain) rtcReleaseGeometry(g);
+    for (RTCGeometry g : occluding) rtcReleaseGeometry(g);
+    for (RTCGeometry g : statics) rtcReleaseGeometry(g);
+    if (top) rtcReleaseScene(top);
+    for (RTCScene s : subscenes) rtcReleaseScene(s);
+    if (device) rtcReleaseDevice(device);
+  }
+
+  void check(const char* what) const {
+    const RTCError e = rtcGetDeviceError(device);
+    if (e != RTC_ERROR_NONE)
+      throw std::runtime_error(std::string("Embree error ") + std::to_string(e) + " in " + what);
+  }
+
+  RTCScene mesh_scene(const TriangleMesh& m) {
+    RTCScene s = rtcNewScene(device);
+    subscenes.push_back(s);
+    // Watertight: no rays slip between the triangles of a curved surface.
+    rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST);
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+        g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), m.vertices.size()));
+    auto* t = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), m.triangles.size()));
+    if (!v || !t) {
+      rtcReleaseGeometry(g);
+      check("mesh buffers");
+      throw std::runtime_error("Embree: cannot allocate mesh buffers");
+    }
+    for (std::size_t i = 0; i < m.vertices.size(); ++i)
+      for (int k = 0; k < 3; ++k) v[3 * i + k] = m.vertices[i][k];
+    const auto n = static_cast<int>(m.vertices.size());
+    for (std::size_t i = 0; i < m.triangles.size(); ++i) {
+      for (int k = 0; k < 3; ++k) {
+        const int idx = m.triangles[i][k];
+        if (idx < 0 || idx >= n) {
+          rtcReleaseGeometry(g);
+          throw std::invalid_argument("mesh triangle index " + std::to_string(idx) +
+                                      " out of range");
+        }
+        t[3 * i + k] = static_cast<unsigned>(idx);
+      }
+    }
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(s, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(s);
+    check("mesh scene");
+    return s;
+  }
+
+  RTCGeometry instance(RTCScene sub, const Eigen::Isometry3d& X, unsigned mask,
+                       std::uint8_t label, double reflectance, std::vector<unsigned>& ids) {
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(g, sub);
+    rtcSetGeometryTimeStepCount(g, 1);
+    rtcSetGeometryMask(g, mask);
+    set_transform(g, X);
+    rtcCommitGeometry(g);
+    const unsigned id = rtcAttachGeometry(top, g);
+    ids.push_back(id);
+    if (label_of.size() <= id) {
+      label_of.resize(id + 1, kLabelNothing);
+      R_of.resize(id + 1, Eigen::Matrix3f::Identity());
+      reflectance_of.resize(id + 1, 1.0F);
+    }
+    label_of[id] = label;
+    R_of[id] = X.linear().cast<float>();
+    reflectance_of[id] = static_cast<float>(reflectance);
+    check("instance");
+    return g;
+  }
+
+};
+
+Sensor::Sensor(const SensorParams& params, const ComponentGeometry& geometry,
+               std::vector<Occluder> occluders, std::vector<BackgroundObject> background)
+    : impl_(std::make_unique<Impl>()) {
+  params.validate();
+  geometry.validate();
+  if (geometry.count > kLabelOccluder0)
+    throw std::invalid_argument("sensor: at most " + std::to_string(kLabelOccluder0) +
+                                " components can be labelled");
+  if (static_cast<int>(occluders.size()) > kMaxOccluders)
+    throw std::invalid_argument("sensor: at most " + std::to_string(kMaxOccluders) + " occluders");
+  Impl& m = *impl_;
+  m.p = params;
+  m.count = geometry.count;
+  m.occluders = std::move(occluders);
+  // Meshes first: a missing file fails before Embree is set up.
+  const TriangleMesh component = component_mesh(geometry, params.component_segments);
+  std::vector<TriangleMesh> occluder_meshes, background_meshes;
+  for (std::size_t k = 0; k < m.occluders.size(); ++k) {
+    try {
+      occluder_meshes.push_back(m.occluders[k].shape.triangles());
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("occluder " + std::to_string(k) + ": " + e.what());
+    }
+  }
+  for (std::size_t k = 0; k < background.size(); ++k) {
+    try {
+      background_meshes.push_back(background[k].shape.triangles());
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("background object " + std::to_string(k) + ": " + e.what());
+    }
+  }
+  m.device = rtcNewDevice(nullptr);
+  if (!m.device) throw std::runtime_error("Embree: cannot create a device");
+  m.top = rtcNewScene(m.device);
+  rtcSetSceneFlags(m.top, RTC_SCENE_FLAG_DYNAMIC);
+  rtcSetSceneBuildQuality(m.top, RTC_BUILD_QUALITY_LOW);
+  RTCScene comp = m.mesh_scene(component);
+  for (int c = 0; c < m.count; ++c) {
+    m.chain.push_back(m.instance(comp, Eigen::Isometry3d::Identity(), kMaskScene,
+                                 static_cast<std::uint8_t>(c), params.chain_reflectance, m.chain_id));
+  }
+  for (std::size_t k = 0; k < m.occluders.size(); ++k) {
+    m.occluding.push_back(m.instance(m.mesh_scene(occluder_meshes[k]),
+                                     m.occluders[k].path.pose(0.0), kMaskOccluder,
+                                     static_cast<std::uint8_t>(kLabelOccluder0 + k),
+                                     m.occluders[k].reflectance, m.occluder_id));
+  }
+  for (std::size_t k = 0; k < background.size(); ++k) {
+    m.statics.push_back(m.instance(m.mesh_scene(background_meshes[k]), background[k].X_WO,
+                                   kMaskScene, kLabelBackground, background[k].reflectance, m.static_id));
+  }
+  rtcCommitScene(m.top);
+  m.check("scene");
+}
+
+Sensor::~Sensor() = default;
+
+const SensorParams& Sensor::params() const { return impl_->p; }
+const SensorTimes& Sensor::last_times() const { return impl_->times; }
+
+DepthFrame Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t,
+                          std::uint64_t seed, std::uint64_t frame) {
+  DepthFrame out;
+  render(X_WK, t, seed, frame, out);
+  return out;
+}
+
+void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::uint64_t seed,
+                    std::uint64_t frame, DepthFrame& out) {
+  Impl& m = *impl_;
+  if (static_cast<int>(X_WK.size()) != m.count) {
+    throw std::invalid_argument("sensor render: " + std::to_string(X_WK.size()) +
+                                " component poses for a chain of " + std::to_string(m.count));
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int c = 0; c < m.count; ++c) {
+    set_transform(m.chain[c], X_WK[c]);
+    rtcCommitGeometry(m.chain[c]);
+    m.R_of[m.chain_id[c]] = X_WK[c].linear().cast<float>();
+  }
+  for (std::size_t k = 0; k < m.occluders.size(); ++k) {
+    const Eigen::Isometry3d X_WO = m.occluders[k].path.pose(t);
+    set_transform(m.occluding[k], X_WO);
+    rtcCommitGeometry(m.occluding[k]);
+    m.R_of[m.occluder_id[k]] = X_WO.linear().cast<float>();
+  }
+  rtcCommitScene(m.top);
+  m.check("scene update");
+  m.times.scene = seconds_since(t0);
+
+  const io::Intrinsics& K = m.p.camera.intrinsics;
+  const NoiseParams& noise = m.p.noise;
+  const int W = K.width, H = K.height;
+  const std::size_t n = static_cast<std::size_t>(W) * H;
+  out.width = W;
+  out.height = H;
+  out.depth.width = W;
+  out.depth.height = H;
+  out.depth.data.assign(n, 0);
+  out.depth_m.assign(n, 0.0F);
+  out.depth_clean_m.assign(n, 0.0F);
+  out.label.assign(n, kLabelNothing);
+  out.incidence.assign(n, std::numeric_limits<float>::quiet_NaN());
+  m.cos_p.assign(n, 0.0F);
+  m.lit.assign(n, 1);
+  const std::uint64_t frame_seed = derive_seed(derive_seed(seed, "sensor"), frame);
+  const int threads = m.p.threads > 0 ? m.p.threads : omp_get_max_threads();
+
+  const Eigen::Matrix3d R_WC = m.p.camera.X_WC.linear();
+  const Eigen::Vector3d o_W = m.p.camera.X_WC.translation();
+  const Eigen::Vector3d P_W = m.p.camera.X_WC * Eigen::Vector3d(noise.shadow.baseline, 0, 0);
+  const bool jitter = noise.lateral.enabled && noise.lateral.sigma_px > 0;
+  const bool shadows = noise.shadow.enabled;
+  const int per_row = (W + kPacket - 1) / kPacket;
+  const long packets = static_cast<long>(per_row) * H;
+  // Ray direction of pixel i in W, scaled so that its camera-frame z is 1: the hit
+  // distance t is then the depth.
+  auto direction = [&](int u, int v, std::size_t pix) {
+    double du = 0, dv = 0;
+    if (jitter) {
+      const Eigen::Vector2d g = normals(derive_seed(frame_seed, pix), kJitter);
+      du = g.x() * noise.lateral.sigma_px;
+      dv = g.y() * noise.lateral.sigma_px;
+    }
+    return Eigen::Vector3d(R_WC * K.deproject(u + du, v + dv, 1.0));
+  };
+
+  auto t1 = std::chrono::steady_clock::now();
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (long pk = 0; pk < packets; ++pk) {
+    const int v = static_cast<int>(pk / per_row);
+    const int u0 = static_cast<int>(pk % per_row) * kPacket;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    alignas(64) RTCRayHit16 rh;
+    alignas(64) int valid[kPacket];
+    Eigen::Vector3d dirs[kPacket];
+    for (int i = 0; i < kPacket; ++i) {
+      const int u = u0 + i;
+      valid[i] = u < W ? -1 : 0;
+      const Eigen::Vector3d d = u < W ? direction(u, v, static_cast<std::size_t>(v) * W + u)
+                                      : Eigen::Vector3d::UnitZ();
+      dirs[i] = d;
+      rh.ray.org_x[i] = static_cast<float>(o_W.x());
+      rh.ray.org_y[i] = static_cast<float>(o_W.y());
+      rh.ray.org_z[i] = static_cast<float>(o_W.z());
+      rh.ray.dir_x[i] = static_cast<float>(d.x());
+      rh.ray.dir_y[i] = static_cast<float>(d.y());
+      rh.ray.dir_z[i] = static_cast<float>(d.z());
+      rh.ray.tnear[i] = 0.0F;
+      rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
+      rh.ray.mask[i] = 0xFFFFFFFFu;  // Debian's Embree filters by mask
+      rh.ray.time[i] = 0.0F;
+      rh.ray.flags[i] = 0;
+      rh.ray.id[i] = static_cast<unsigned>(i);
+      rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, m.top, &ctx, &rh);
+    alignas(64) RTCRay16 sr;
+    alignas(64) int svalid[kPacket];
+    bool any_shadow = false;
+    for (int i = 0; i < kPacket; ++i) {
+      svalid[i] = 0;
+      if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+      const std::size_t pix = static_cast<std::size_t>(v) * W + u0 + i;
+      const unsigned inst = rh.hit.instID[0][i];
+      const double tz = rh.ray.tfar[i];
+      // Embree reports instance hits' normals in the instance's own frame.
+      Eigen::Vector3d nrm = (m.R_of[inst] * Eigen::Vector3f(rh.hit.Ng_x[i], rh.hit.Ng_y[i],
+                                                            rh.hit.Ng_z[i]))
+                                .cast<double>()
+                                .normalized();
+      const Eigen::Vector3d d = dirs[i].normalized();
+      if (nrm.dot(d) > 0) nrm = -nrm;
+      const Eigen::Vector3d p_W = o_W + tz * dirs[i];
+      const Eigen::Vector3d to_p = P_W - p_W;
+      out.label[pix] = m.label_of[inst];
+      out.depth_clean_m[pix] = static_cast<float>(tz);
+      out.incidence[pix] = static_cast<float>(std::acos(std::clamp(-nrm.dot(d), -1.0, 1.0)));
+      m.cos_p[pix] = static_cast<float>(nrm.dot(to_p) / to_p.norm());
+      if (shadows && m.cos_p[pix] > 0) {
+        const Eigen::Vector3d org = p_W + 1e-5 * nrm;  // off the surface it starts on
+        const Eigen::Vector3d sd = P_W - org;
+        svalid[i] = -1;
+        any_shadow = true;
+        sr.org_x[i] = static_cast<float>(org.x());
+        sr.org_y[i] = static_cast<float>(org.y());
+        sr.org_z[i] = static_cast<float>(org.z());
+        sr.dir_x[i] = static_cast<float>(sd.x());
+        sr.dir_y[i] = static_cast<float>(sd.y());
+        sr.dir_z[i] = static_cast<float>(sd.z());
+        sr.tnear[i] = 0.0F;
+        sr.tfar[i] = 1.0F;
+        sr.mask[i] = 0xFFFFFFFFu;
+        sr.time[i] = 0.0F;
+        sr.flags[i] = 0;
+        sr.id[i] = static_cast<unsigned>(i);
+      } else if (shadows) {
+        m.lit[pix] = 0;  // the projector sees the surface from behind
+      }
+    }
+    if (any_shadow) {
+      rtcOccluded16(svalid, m.top, &ctx, &sr);
+      for (int i = 0; i < kPacket; ++i) {
+        if (svalid[i] && sr.tfar[i] < 0.0F)  // -inf: blocked
+          m.lit[static_cast<std::size_t>(v) * W + u0 + i] = 0;
+      }
+    }
+  }
+  m.times.cast = seconds_since(t1);
+
+  // Occluded fractions: where an occluder was hit, what would be seen without it.
+  t1 = std::chrono::steady_clock::now();
+  out.visible_px.assign(m.count, 0);
+  out.visible_px_unoccluded.assign(m.count, 0);
+  out.occluded_fraction.assign(m.count, 0.0);
+  if (!m.occluders.empty()) {
+    m.label_no_occluders.assign(n, kLabelNothing);
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (long pk = 0; pk < packets; ++pk) {
+      const int v = static_cast<int>(pk / per_row);
+      const int u0 = static_cast<int>(pk % per_row) * kPacket;
+      alignas(64) RTCRayHit16 rh;
+      alignas(64) int valid[kPacket];
+      bool any = false;
+      for (int i = 0; i < kPacket; ++i) {
+        const int u = u0 + i;
+        const std::size_t pix = static_cast<std::size_t>(v) * W + u;
+        valid[i] = 0;
+        if (u >= W) continue;
+        const std::uint8_t l = out.label[pix];
+        if (l < kLabelOccluder0 || l >= kLabelBackground) continue;
+        valid[i] = -1;
+        any = true;
+        const Eigen::Vector3d d = direction(u, v, pix);  // the same jittered ray
+        rh.ray.org_x[i] = static_cast<float>(o_W.x());
+        rh.ray.org_y[i] = static_cast<float>(o_W.y());
+        rh.ray.org_z[i] = static_cast<float>(o_W.z());
+        rh.ray.dir_x[i] = static_cast<float>(d.x());
+        rh.ray.dir_y[i] = static_cast<float>(d.y());
+        rh.ray.dir_z[i] = static_cast<float>(d.z());
+        rh.ray.tnear[i] = 0.0F;
+        rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
+        rh.ray.mask[i] = kMaskScene;
+        rh.ray.time[i] = 0.0F;
+        rh.ray.flags[i] = 0;
+        rh.ray.id[i] = static_cast<unsigned>(i);
+        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+      }
+      if (!any) continue;
+      RTCIntersectContext ctx;
+      rtcInitIntersectContext(&ctx);
+      rtcIntersect16(valid, m.top, &ctx, &rh);
+      for (int i = 0; i < kPacket; ++i) {
+        if (valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID)
+          m.label_no_occluders[static_cast<std::size_t>(v) * W + u0 + i] =
+              m.label_of[rh.hit.instID[0][i]];
+      }
+    }
+  }
+  for (std::size_t pix = 0; pix < n; ++pix) {
+    const std::uint8_t l = out.label[pix];
+    if (l < m.count) {
+      ++out.visible_px[l];
+      ++out.visible_px_unoccluded[l];
+    } else if (!m.occluders.empty() && m.label_no_occluders[pix] < m.count) {
+      ++out.visible_px_unoccluded[m.label_no_occluders[pix]];
+    }
+  }
+  long vis = 0, unocc = 0;
+  for (int c = 0; c < m.count; ++c) {
+    vis += out.visible_px[c];
+    unocc += out.visible_px_unoccluded[c];
+    if (out.visible_px_unoccluded[c] > 0)
+      out.occluded_fraction[c] =
+          1.0 - static_cast<double>(out.visible_px[c]) / out.visible_px_unoccluded[c];
+  }
+  out.link_occluded_fraction = unocc > 0 ? 1.0 - static_cast<double>(vis) / unocc : 0.0;
+  m.times.occlusion = seconds_since(t1);
+
+  // Noise and artefacts, per pixel from the noise-free images.
+  t1 = std::chrono::steady_clock::now();
+  m.hole.assign(n, 0);
+  if (noise.dropouts.enabled && noise.dropouts.hole_rate > 0) {
+    std::uint64_t state = derive_seed(frame_seed, "holes");
+    auto next = [&] { return static_cast<double>(splitmix64(state) >> 11) * 0x1.0p-53; };
+    // Poisson count: Knuth's product method, or a rounded normal for large rates.
+    int holes = 0;
+    const double rate = noise.dropouts.hole_rate;
+    if (rate < 30) {
+      const double limit = std::exp(-rate);
+      for (double prod = next(); prod > limit; prod *= next()) ++holes;
+    } else {
+      const double u1 = 1.0 - next(), u2 = next();
+      const double g = std::sqrt(-2 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
+      holes = std::max(0, static_cast<int>(std::lround(rate + std::sqrt(rate) * g)));
+    }
+    for (int h = 0; h < holes; ++h) {
+      const double cu = next() * W, cv = next() * H;
+      const double r = 1.0 + next() * (noise.dropouts.hole_radius_px - 1.0);
+      const int v0 = std::max(0, static_cast<int>(cv - r)), v1 = std::min(H - 1, static_cast<int>(cv + r));
+      const int u0 = std::max(0, static_cast<int>(cu - r)), u1 = std::min(W - 1, static_cast<int>(cu + r));
+      for (int v = v0; v <= v1; ++v)
+        for (int u = u0; u <= u1; ++u)
+          if ((u + 0.5 - cu) * (u + 0.5 - cu) + (v + 0.5 - cv) * (v + 0.5 - cv) <= r * r)
+            m.hole[static_cast<std::size_t>(v) * W + u] = 1;
+    }
+  }
+  const double cos_max = std::cos(noise.dropouts.max_incidence);
+  const double z_min = m.p.camera.z_min, z_max = m.p.camera.z_max;
+  const double unit = K.depth_scale;
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (int v = 0; v < H; ++v) {
+    for (int u = 0; u < W; ++u) {
+      const std::size_t pix = static_cast<std::size_t>(v) * W + u;
+      const double z0 = out.depth_clean_m[pix];
+      if (z0 <= 0) continue;
+      const std::uint64_t key = derive_seed(frame_seed, pix);
+      if (noise.shadow.enabled && !m.lit[pix]) continue;
+      if (noise.dropouts.enabled) {
+        const double reflect = out.label[pix] < m.count          ? m.p.chain_reflectance
+                               : out.label[pix] < kLabelBackground
+                                   ? m.occluders[out.label[pix] - kLabelOccluder0].reflectance
+                                   : 1.0;
+        if (std::cos(static_cast<double>(out.incidence[pix])) < cos_max || m.cos_p[pix] < cos_max)
+          continue;
+        if (reflect * m.cos_p[pix] / (z0 * z0) < noise.dropouts.min_signal) continue;
+        if (m.hole[pix]) continue;
+      }
+      double z = z0;
+      if (noise.edges.enabled) {
+        bool edge = false;
+        double z_other = 0;  // the neighbour across the largest jump, 0: nothing there
+        double jump = 0;
+        const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
+        for (int k = 0; k < 4; ++k) {
+          const int uu = u + du[k], vv = v + dv[k];
+          if (uu < 0 || uu >= W || vv < 0 || vv >= H) continue;
+          const double zn = out.depth_clean_m[static_cast<std::size_t>(vv) * W + uu];
+          if (zn <= 0) {
+            edge = true;
+          } else if (std::abs(zn - z0) > noise.edges.jump) {
+            edge = true;
+            if (std::abs(zn - z0) > jump) {
+              jump = std::abs(zn - z0);
+              z_other = zn;
+            }
+          }
+        }
+        if (edge) {
+          if (uniform(key, kEdge) < noise.edges.p_drop) continue;
+          if (z_other > 0 && uniform(key, kFlying) < noise.edges.p_flying)
+            z = z0 + uniform(key, kMix) * (z_other - z0);  // a flying pixel between the two
+        }
+      }
+      if (noise.axial.enabled)
+        z += noise.axial.sigma(z0, out.incidence[pix]) * normals(key, kAxial).x();
+      if (z < z_min || z > z_max) continue;
+      const long q = std::lround(z / unit);
+      if (q <= 0 || q > 65535) continue;
+      out.depth.data[pix] = static_cast<std::uint16_t>(q);
+      out.depth_m[pix] = static_cast<float>(noise.quantize ? q * unit : z);
+    }
+  }
+  m.times.noise = seconds_since(t1);
+}
+
+}  // namespace linksight::sim

@@ -1,0 +1,307 @@
+// The simulated depth camera (sim/sensor): geometry, noise statistics, projector
+// shadow, occlusion bookkeeping, thread independence and parameter errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "linksight/io/error.hpp"
+#include "linksight/sim/sensor.hpp"
+
+namespace linksight::sim {
+namespace {
+
+constexpr double kSurfaceTol = 0.05e-3;  // [m] issue 5: labelled pixels on the analytic surface
+constexpr double kSigmaRelTol = 0.10;    // issue 5: noise sigma within 10% of the model
+constexpr double kShadowTolPx = 1.0;     // issue 5: shadow width within one pixel
+
+// Component frames of a straight chain leaving (0, 0, 0.5) along +x (frame K's z).
+std::vector<Eigen::Isometry3d> straight_chain(const ComponentGeometry& g) {
+  std::vector<Eigen::Isometry3d> X(g.count, Eigen::Isometry3d::Identity());
+  for (int c = 0; c < g.count; ++c) {
+    X[c].linear() = Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitY()).matrix();
+    X[c].translation() = Eigen::Vector3d(c * g.pitch, 0.0, 0.5);
+  }
+  return X;
+}
+
+// A camera 0.5 m in front of the straight chain (on -y), looking at its middle.
+SensorParams side_view(NoiseParams noise) {
+  SensorParams p;
+  p.camera.X_WC = look_at({0.25, -0.5, 0.5}, {0.25, 0.0, 0.5});
+  p.noise = noise;
+  return p;
+}
+
+// A wide plate whose camera-facing side is the plane z = depth of a camera at the origin
+// of W looking along W's +z (X_WC = identity).
+BackgroundObject wall_at(double depth, double half_thickness = 0.01) {
+  BackgroundObject b;
+  b.shape.kind = Shape::Kind::box;
+  b.shape.half_extents = Eigen::Vector3d(3.0, 3.0, half_thickness);
+  b.X_WO.translation() = Eigen::Vector3d(0, 0, depth + half_thickness);
+  return b;
+}
+
+SensorParams frontal(NoiseParams noise) {
+  SensorParams p;
+  p.camera.X_WC = Eigen::Isometry3d::Identity();
+  p.noise = noise;
+  return p;
+}
+
+ComponentGeometry one_component() {
+  ComponentGeometry g;
+  g.count = 1;
+  return g;
+}
+
+// Noise-free depth in float metres back-projects onto the analytic ball or neck surface.
+TEST(Sensor, NoiseOffLabelledPixelsLieOnTheAnalyticSurface) {
+  const ComponentGeometry g;
+  Sensor sensor(side_view(NoiseParams::off()), g);
+  const auto X_WK = straight_chain(g);
+  const DepthFrame f = sensor.render(X_WK, 0.0, 1, 0);
+  const io::Intrinsics& K = sensor.params().camera.intrinsics;
+  const Eigen::Isometry3d X_WC = sensor.params().camera.X_WC;
+  std::vector<int> seen(g.count, 0);
+  double worst = 0;
+  for (int v = 0; v < f.height; ++v) {
+    for (int u = 0; u < f.width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * f.width + u;
+      if (f.label[i] >= g.count) continue;
+      ASSERT_GT(f.depth_m[i], 0.0F) << "labelled pixel without depth at " << u << "," << v;
+      const int c = f.label[i];
+      ++seen[c];
+      const Eigen::Vector3d p_K = X_WK[c].inverse() * (X_WC * K.deproject(u, v, f.depth_m[i]));
+      const double ball = std::abs(p_K.norm() - g.ball_radius);
+      const double s = std::clamp(p_K.z(), 0.0, g.neck_length);
+      const double neck = std::abs((p_K - Eigen::Vector3d(0, 0, s)).norm() - g.neck_radius);
+      worst = std::max(worst, std::min(ball, neck));
+    }
+  }
+  EXPECT_LT(worst, kSurfaceTol);
+  for (int c = 0; c < g.count; ++c) EXPECT_GT(seen[c], 100) << "component " << c;
+  EXPECT_DOUBLE_EQ(f.link_occluded_fraction, 0.0);
+}
+
+TEST(Sensor, NoiseOffPlaneGivesItsDepthUpToQuantization) {
+  NoiseParams noise = NoiseParams::off();
+  noise.quantize = true;
+  for (double z : {0.3, 0.5, 0.8}) {
+    Sensor sensor(frontal(noise), one_component(), {}, {wall_at(z)});
+    std::vector<Eigen::Isometry3d> away(1, Eigen::Isometry3d::Identity());
+    away[0].translation() = Eigen::Vector3d(0, 0, -5);  // behind the camera
+    const DepthFrame f = sensor.render(away, 0.0, 1, 0);
+    const double unit = sensor.params().camera.intrinsics.depth_scale;
+    for (std::size_t i = 0; i < f.label.size(); ++i) {
+      ASSERT_EQ(f.label[i], kLabelBackground);
+      ASSERT_NEAR(f.depth_clean_m[i], z, 1e-6);
+      ASSERT_LE(std::abs(f.depth.data[i] * unit - z), 0.5 * unit + 1e-9);
+      ASSERT_FLOAT_EQ(f.depth_m[i], static_cast<float>(f.depth.data[i] * unit));
+    }
+  }
+}
+
+// Embree reports an instance's normal in the instance's frame: a tilted plate must
+// still give its true incidence angle.
+TEST(Sensor, IncidenceAngleOfATiltedPlate) {
+  for (double deg : {0.0, 30.0, 60.0}) {
+    BackgroundObject b = wall_at(0.0);
+    b.X_WO = Eigen::Isometry3d::Identity();
+    b.X_WO.linear() = Eigen::AngleAxisd(deg * std::numbers::pi / 180, Eigen::Vector3d::UnitY())
+                          .toRotationMatrix();
+    b.X_WO.translation() = Eigen::Vector3d(0, 0, 0.6);
+    Sensor sensor(frontal(NoiseParams::off()), one_component(), {}, {b});
+    std::vector<Eigen::Isometry3d> away(1, Eigen::Isometry3d::Identity());
+    away[0].translation() = Eigen::Vector3d(0, 0, -5);
+    const DepthFrame f = sensor.render(away, 0.0, 1, 0);
+    const io::Intrinsics& K = sensor.params().camera.intrinsics;
+    // The pixel whose ray is the optical axis: (cx, cy) are integers here.
+    const std::size_t i = static_cast<std::size_t>(K.cy) * f.width + static_cast<std::size_t>(K.cx);
+    EXPECT_NEAR(f.incidence[i] * 180 / std::numbers::pi, deg, 0.01);
+  }
+}
+
+// Axial noise: per-pixel residuals of a fronto-parallel plane have the model's sigma.
+TEST(Sensor, PlaneNoiseMatchesTheModelSigma) {
+  NoiseParams noise = NoiseParams::off();
+  noise.axial.enabled = true;
+  noise.quantize = true;
+  for (double z : {0.3, 0.5, 0.8}) {
+    Sensor sensor(frontal(noise), one_component(), {}, {wall_at(z)});
+    std::vector<Eigen::Isometry3d> away(1, Eigen::Isometry3d::Identity());
+    away[0].translation() = Eigen::Vector3d(0, 0, -5);
+    const DepthFrame f = sensor.render(away, 0.0, 7, 3);
+    double sum = 0, sum2 = 0, model2 = 0;
+    long n = 0;
+    for (std::size_t i = 0; i < f.label.size(); ++i) {
+      if (f.depth.data[i] == 0) continue;
+      const double r = f.depth_m[i] - f.depth_clean_m[i];
+      const double s = noise.axial.sigma(f.depth_clean_m[i], f.incidence[i]);
+      sum += r;
+      sum2 += r * r;
+      model2 += s * s;
+      ++n;
+    }
+    ASSERT_GT(n, 300000);
+    const double sigma = std::sqrt(sum2 / n - (sum / n) * (sum / n));
+    const double model = std::sqrt(model2 / n);
+    EXPECT_NEAR(sigma / model, 1.0, kSigmaRelTol) << "z = " << z;
+    EXPECT_NEAR(sum / n, 0.0, 0.05 * model) << "z = " << z << ": biased";
+  }
+}
+
+// Projector shadow behind a vertical edge: f b (1/z1 - 1/z2) pixels wide, on the side
+// away from the projector.
+TEST(Sensor, ProjectorShadowWidthMatchesTheBaselineGeometry) {
+  const double z1 = 0.5, z2 = 0.8;
+  for (double baseline : {0.05, -0.03}) {
+    NoiseParams noise = NoiseParams::off();
+    noise.shadow.enabled = true;
+    noise.shadow.baseline = baseline;
+    // A plate at z1 covering x >= 0 (baseline > 0) or x <= 0 (baseline < 0).
+    BackgroundObject plate;
+    plate.shape.half_extents = Eigen::Vector3d(0.5, 0.5, 0.002);
+    plate.X_WO.translation() = Eigen::Vector3d(baseline > 0 ? 0.5 : -0.5, 0, z1 + 0.002);
+    Sensor sensor(frontal(noise), one_component(), {}, {plate, wall_at(z2)});
+    std::vector<Eigen::Isometry3d> away(1, Eigen::Isometry3d::Identity());
+    away[0].translation() = Eigen::Vector3d(0, 0, -5);
+    const DepthFrame f = sensor.render(away, 0.0, 1, 0);
+    const io::Intrinsics& K = sensor.params().camera.intrinsics;
+    const double expected = K.fx * std::abs(baseline) * (1 / z1 - 1 / z2);
+    for (int v : {100, 245, 400}) {
+      int shadow = 0;
+      for (int u = 0; u < f.width; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v) * f.width + u;
+        if (f.depth.data[i] == 0) {
+          ++shadow;
+          // On the far surface, on the side of the edge away from the projector.
+          EXPECT_NEAR(f.depth_clean_m[i], z2, 1e-4);
+          EXPECT_EQ(u < K.cx, baseline > 0) << "u = " << u;
+        }
+      }
+      EXPECT_NEAR(shadow, expected, kShadowTolPx) << "baseline " << baseline << ", row " << v;
+    }
+  }
+}
+
+// A box hiding exactly components 4, 5 and 6 of a chain of spheres (no necks, so the
+// gaps between balls give the box's edges room), and a second box covering the image
+// right of ball 8's centre: half of it.
+TEST(Sensor, OccludedFractionOfABoxOverTheMiddleThreeBalls) {
+  ComponentGeometry g;
+  g.neck_length = 0.0;
+  const double p = g.pitch;
+  const double y_box = -0.2;  // the boxes' front faces, 0.3 m from the camera, 0.5 from the chain
+  const double scale = (y_box + 0.5) / 0.5;
+  auto at_box = [&](double x_chain) { return 0.25 + (x_chain - 0.25) * scale; };
+  Occluder middle;
+  middle.shape.half_extents =
+      Eigen::Vector3d(0.5 * (at_box(6.5 * p) - at_box(3.5 * p)), 0.0005, 0.05);
+  middle.path = BaseTrajectory(
+      {{0.0, Eigen::Isometry3d(Eigen::Translation3d(0.5 * (at_box(6.5 * p) + at_box(3.5 * p)),
+                                                    y_box + 0.0005, 0.5))}},
+      {});
+  Occluder half;
+  half.shape.half_extents = Eigen::Vector3d(0.05, 0.0005, 0.05);
+  half.path = BaseTrajectory(
+      {{0.0, Eigen::Isometry3d(Eigen::Translation3d(at_box(8 * p) + 0.05, y_box + 0.0005, 0.5))}},
+      {});
+  Sensor sensor(side_view(NoiseParams::off()), g, {middle, half});
+  const DepthFrame f = sensor.render(straight_chain(g), 0.0, 1, 0);
+  for (int c = 0; c < g.count; ++c) {
+    ASSERT_GT(f.visible_px_unoccluded[c], 100) << "component " << c;
+    if (c >= 4 && c <= 6) {
+      EXPECT_EQ(f.visible_px[c], 0) << "component " << c;
+      EXPECT_DOUBLE_EQ(f.occluded_fraction[c], 1.0) << "component " << c;
+    } else if (c == 8) {
+      EXPECT_NEAR(f.occluded_fraction[c], 0.5, 0.03);
+    } else if (c < 8) {
+      EXPECT_EQ(f.visible_px[c], f.visible_px_unoccluded[c]) << "component " << c;
+      EXPECT_DOUBLE_EQ(f.occluded_fraction[c], 0.0) << "component " << c;
+    } else {
+      EXPECT_DOUBLE_EQ(f.occluded_fraction[c], 1.0) << "component " << c;
+    }
+  }
+  bool occluder_labels = false;
+  for (std::uint8_t l : f.label) occluder_labels |= l == kLabelOccluder0 || l == kLabelOccluder0 + 1;
+  EXPECT_TRUE(occluder_labels);
+}
+
+TEST(Sensor, SameImagesForAnyThreadCount) {
+  const ComponentGeometry g;
+  SensorParams p = side_view(NoiseParams::sr300());
+  BackgroundObject table;
+  table.shape.half_extents = Eigen::Vector3d(1.0, 1.0, 0.01);
+  table.X_WO.translation() = Eigen::Vector3d(0.25, 0.3, 0.3);
+  p.threads = 1;
+  Sensor one(p, g, {}, {table});
+  p.threads = 2;
+  Sensor two(p, g, {}, {table});
+  const auto X = straight_chain(g);
+  for (std::uint64_t frame : {0u, 5u}) {
+    const DepthFrame a = one.render(X, 0.0, 42, frame);
+    const DepthFrame b = two.render(X, 0.0, 42, frame);
+    EXPECT_EQ(a.depth.data, b.depth.data);
+    EXPECT_EQ(a.depth_m, b.depth_m);
+    EXPECT_EQ(a.label, b.label);
+  }
+  // A different frame or seed draws different noise.
+  EXPECT_NE(one.render(X, 0.0, 42, 0).depth.data, one.render(X, 0.0, 42, 1).depth.data);
+  EXPECT_NE(one.render(X, 0.0, 42, 0).depth.data, one.render(X, 0.0, 43, 0).depth.data);
+}
+
+template <class F>
+void expect_invalid(F&& make, const std::string& needle) {
+  try {
+    make();
+    ADD_FAILURE() << "no error; expected one naming " << needle;
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
+TEST(Sensor, BadParametersAreNamed) {
+  const ComponentGeometry g;
+  expect_invalid([&] {
+    SensorParams p;
+    p.camera.intrinsics.fx = 0;
+    Sensor s(p, g);
+  }, "fx");
+  expect_invalid([&] {
+    SensorParams p;
+    p.camera.z_min = 1.5;
+    p.camera.z_max = 1.5;
+    Sensor s(p, g);
+  }, "z_min");
+  expect_invalid([&] {
+    SensorParams p;
+    p.camera.intrinsics.width = 0;
+    Sensor s(p, g);
+  }, "width");
+  expect_invalid([&] {
+    SensorParams p;
+    p.noise.edges.p_drop = 1.5;
+    Sensor s(p, g);
+  }, "edges.p_drop");
+  expect_invalid([&] {
+    Occluder o;
+    o.shape.kind = Shape::Kind::mesh;
+    o.shape.mesh = "/nonexistent/hand.obj";
+    Sensor s(SensorParams{}, g, {o});
+  }, "/nonexistent/hand.obj");
+  EXPECT_THROW(
+      {
+        Occluder o;
+        o.shape.kind = Shape::Kind::mesh;
+        o.shape.mesh = "/nonexistent/hand.obj";
+        Sensor s(SensorParams{}, g, {o});
+      },
+      io::InputError);
+  Sensor s(SensorParams{}, g);
+  expect_invalid([&] { (void)s.render({}, 0.0, 1, 0); }, "component poses");
+}
+
+}  // namespace
+}  // namespace linksight::sim
