@@ -26,14 +26,14 @@ int run_simulate(const SimulateOptions& o) {
   if (o.frames < 0)
     throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 0");
   const int frames =
-      o.frames > 0 ? o.frames : static_cast<int>(scene.duration_s * scene.camera_fps) + 1;
+      o.frames > 0 ? o.frames : static_cast<int>(scene.duration_s * scene.camera.fps) + 1;
   std::unique_ptr<sim::World> world = sim::make_world(scene);
   std::ostringstream truth;
   truth << "frame,t_s,node,x_m,y_m,z_m\n" << std::fixed << std::setprecision(6);
   int contact_frames = 0;
   for (int f = 0; f < frames; ++f) {
     // Frame f is at t = f / fps: step physics up to it (1 kHz by default).
-    const double t_frame = f / scene.camera_fps;
+    const double t_frame = f / scene.camera.fps;
     while (world->time() + 0.5 * scene.world.dt < t_frame) world->step();
     const sim::Truth t = world->truth();
     contact_frames += t.contact ? 1 : 0;

@@ -17,5 +17,6 @@ Runner add_synth(CLI::App& app);
 Runner add_devices(CLI::App& app);
 Runner add_simulate(CLI::App& app);
 Runner add_meshes(CLI::App& app);
+Runner add_render(CLI::App& app);
 
 }  // namespace linksight::cli

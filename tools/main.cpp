@@ -23,6 +23,10 @@ int main(int argc, char** argv) {
       {"synth", "Write a synthetic cloud sequence of the link with its true nodes.", add_synth},
       {"simulate", "Run a scene's physics and write the true nodes at the camera rate.",
        add_simulate},
+      {"render",
+       "Render a scene with the simulated SR300: depth and label PNGs, clouds, truth in the "
+       "camera frame.",
+       add_render},
       {"devices", "List every OpenCL platform and device, and what the opencl back end needs.",
        add_devices},
       {"meshes", "Write the component's triangle mesh (component.obj, metres, frame K).",

@@ -50,6 +50,24 @@ class Reader {
     }
     return v;
   }
+  std::string text(const YAML::Node& map, const std::string& where, const char* key,
+                   const std::string& fallback) const {
+    const YAML::Node n = map[key];
+    if (!n) return fallback;
+    if (!n.IsScalar()) fail(n, where.empty() ? key : where + "." + key, "expected a string");
+    return n.as<std::string>();
+  }
+  // A string out of `choices`.
+  std::string choice(const YAML::Node& map, const std::string& where, const char* key,
+                     const std::string& fallback, const std::set<std::string>& choices) const {
+    const std::string v = text(map, where, key, fallback);
+    if (!choices.count(v)) {
+      std::string list;
+      for (const std::string& c : choices) list += (list.empty() ? "" : ", ") + c;
+      fail(map[key], where + "." + key, "'" + v + "' is not one of " + list);
+    }
+    return v;
+  }
   bool boolean(const YAML::Node& map, const std::string& where, const char* key,
                bool fallback) const {
     const YAML::Node n = map[key];
@@ -122,9 +140,224 @@ class Reader {
     }
   }
 
+  // shape: box | cylinder | sphere | mesh, with its sizes. `base` resolves mesh paths.
+  Shape shape(const YAML::Node& map, const std::string& where,
+              const std::filesystem::path& base) const {
+    Shape sh;
+    const std::string kind =
+        choice(map, where, "shape", "box", {"box", "cylinder", "sphere", "mesh"});
+    sh.kind = kind == "box"        ? Shape::Kind::box
+              : kind == "cylinder" ? Shape::Kind::cylinder
+              : kind == "sphere"   ? Shape::Kind::sphere
+                                   : Shape::Kind::mesh;
+    sh.half_extents = vec3(map, where, "half_extents_m", sh.half_extents);
+    if (!(sh.half_extents.minCoeff() > 0))
+      fail(map["half_extents_m"], where + ".half_extents_m", "must all be > 0");
+    sh.radius = number(map, where, "radius_m", sh.radius, 1e-4, 10.0);
+    sh.half_length = number(map, where, "half_length_m", sh.half_length, 1e-4, 10.0);
+    sh.scale = number(map, where, "scale", sh.scale, 1e-6, 1e6);
+    if (sh.kind == Shape::Kind::mesh) {
+      if (!map["mesh"]) fail(map, where + ".mesh", "a mesh shape needs a mesh file");
+      const std::filesystem::path file = text(map, where, "mesh", "");
+      sh.mesh = file.is_absolute() ? file : base / file;
+      std::error_code ec;
+      if (!std::filesystem::is_regular_file(sh.mesh, ec))
+        fail(map["mesh"], where + ".mesh", sh.mesh.string() + ": mesh file not found");
+    } else if (map["mesh"]) {
+      fail(map["mesh"], where + ".mesh", "only for shape: mesh");
+    }
+    return sh;
+  }
+
  private:
   std::string file_;
 };
+
+const std::set<std::string> kShapeKeys = {"shape",  "half_extents_m", "radius_m", "half_length_m",
+                                          "mesh",   "scale",          "reflectance"};
+
+std::set<std::string> with(std::set<std::string> keys, std::initializer_list<const char*> more) {
+  for (const char* k : more) keys.insert(k);
+  return keys;
+}
+
+void read_camera(const Reader& r, const YAML::Node& c, CameraParams& cam) {
+  r.only(c, "camera",
+         {"preset", "fps", "width", "height", "fx", "fy", "cx", "cy", "depth_scale_m",
+          "distortion", "coeffs", "z_min_m", "z_max_m", "look_at", "X_WC"});
+  (void)r.choice(c, "camera", "preset", "sr300", {"sr300"});
+  io::Intrinsics& k = cam.intrinsics;
+  cam.fps = r.number(c, "camera", "fps", cam.fps, 1.0, 1000.0);
+  k.width = static_cast<int>(r.number(c, "camera", "width", k.width, 1, 8192));
+  k.height = static_cast<int>(r.number(c, "camera", "height", k.height, 1, 8192));
+  k.fx = r.number(c, "camera", "fx", k.fx, 1e-3, 1e5);
+  k.fy = r.number(c, "camera", "fy", k.fy, 1e-3, 1e5);
+  k.cx = r.number(c, "camera", "cx", k.cx, -1e5, 1e5);
+  k.cy = r.number(c, "camera", "cy", k.cy, -1e5, 1e5);
+  k.depth_scale = r.number(c, "camera", "depth_scale_m", k.depth_scale, 1e-7, 1.0);
+  const std::string model = r.choice(c, "camera", "distortion", "none",
+                                     {"none", "brown_conrady", "inverse_brown_conrady"});
+  k.model = model == "none"            ? io::Distortion::none
+            : model == "brown_conrady" ? io::Distortion::brown_conrady
+                                       : io::Distortion::inverse_brown_conrady;
+  if (const YAML::Node co = c["coeffs"]) {
+    if (!co.IsSequence() || co.size() != 5) r.fail(co, "camera.coeffs", "expected 5 numbers");
+    for (std::size_t i = 0; i < 5; ++i) {
+      try {
+        k.coeffs[i] = co[i].as<double>();
+      } catch (const YAML::Exception&) {
+        r.fail(co, "camera.coeffs", "expected 5 numbers");
+      }
+    }
+  }
+  cam.z_min = r.number(c, "camera", "z_min_m", cam.z_min, 0.0, 100.0);
+  cam.z_max = r.number(c, "camera", "z_max_m", cam.z_max, 0.0, 100.0);
+  if (!(cam.z_max > cam.z_min)) r.fail(c["z_max_m"] ? c["z_max_m"] : c, "camera.z_max_m",
+                                      "must be greater than z_min_m");
+  if (c["look_at"] && c["X_WC"]) r.fail(c["X_WC"], "camera.X_WC", "give look_at or X_WC, not both");
+  if (const YAML::Node l = c["look_at"]) {
+    r.only(l, "camera.look_at", {"eye_m", "target_m", "up"});
+    try {
+      cam.X_WC = look_at(r.vec3(l, "camera.look_at", "eye_m", {0.25, -0.6, 0.6}),
+                         r.vec3(l, "camera.look_at", "target_m", {0.25, 0.0, 0.45}),
+                         r.vec3(l, "camera.look_at", "up", Eigen::Vector3d::UnitZ()));
+    } catch (const std::invalid_argument& e) {
+      r.fail(l, "camera.look_at", e.what());
+    }
+  }
+  if (const YAML::Node m = c["X_WC"]) {
+    if (!m.IsSequence() || m.size() != 16)
+      r.fail(m, "camera.X_WC", "expected 16 numbers (4x4, row-major)");
+    Eigen::Matrix4d M;
+    for (int i = 0; i < 16; ++i) {
+      try {
+        M(i / 4, i % 4) = m[i].as<double>();
+      } catch (const YAML::Exception&) {
+        r.fail(m, "camera.X_WC", "expected 16 numbers");
+      }
+    }
+    if (!M.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1)))
+      r.fail(m, "camera.X_WC", "last row must be 0 0 0 1");
+    cam.X_WC.matrix() = M;
+  }
+  try {
+    cam.validate();
+  } catch (const std::invalid_argument& e) {
+    r.fail(c, "camera", e.what());
+  }
+}
+
+void read_noise(const Reader& r, const YAML::Node& n, NoiseParams& noise) {
+  r.only(n, "noise", {"preset", "axial", "lateral", "shadow", "dropouts", "edges", "quantize"});
+  noise = NoiseParams::preset(r.choice(n, "noise", "preset", "sr300", {"off", "sr300"}));
+  constexpr double deg = std::numbers::pi / 180.0;
+  if (const YAML::Node a = n["axial"]) {
+    r.only(a, "noise.axial", {"enabled", "a_m", "c_per_m", "k_theta", "theta_cap_deg"});
+    AxialNoise& x = noise.axial;
+    x.enabled = r.boolean(a, "noise.axial", "enabled", true);
+    x.a = r.number(a, "noise.axial", "a_m", x.a, 0.0, 0.1);
+    x.c = r.number(a, "noise.axial", "c_per_m", x.c, 0.0, 0.1);
+    x.k_theta = r.number(a, "noise.axial", "k_theta", x.k_theta, 0.0, 0.1);
+    x.theta_cap = r.number(a, "noise.axial", "theta_cap_deg", x.theta_cap / deg, 0.0, 89.9) * deg;
+  }
+  if (const YAML::Node l = n["lateral"]) {
+    r.only(l, "noise.lateral", {"enabled", "sigma_px"});
+    noise.lateral.enabled = r.boolean(l, "noise.lateral", "enabled", true);
+    noise.lateral.sigma_px = r.number(l, "noise.lateral", "sigma_px", noise.lateral.sigma_px, 0, 10);
+  }
+  if (const YAML::Node s = n["shadow"]) {
+    r.only(s, "noise.shadow", {"enabled", "baseline_m"});
+    noise.shadow.enabled = r.boolean(s, "noise.shadow", "enabled", true);
+    noise.shadow.baseline =
+        r.number(s, "noise.shadow", "baseline_m", noise.shadow.baseline, -1.0, 1.0);
+  }
+  if (const YAML::Node d = n["dropouts"]) {
+    r.only(d, "noise.dropouts",
+           {"enabled", "max_incidence_deg", "min_signal", "hole_rate", "hole_radius_px"});
+    Dropouts& x = noise.dropouts;
+    x.enabled = r.boolean(d, "noise.dropouts", "enabled", true);
+    x.max_incidence =
+        r.number(d, "noise.dropouts", "max_incidence_deg", x.max_incidence / deg, 0.1, 90) * deg;
+    x.min_signal = r.number(d, "noise.dropouts", "min_signal", x.min_signal, 0.0, 1e6);
+    x.hole_rate = r.number(d, "noise.dropouts", "hole_rate", x.hole_rate, 0.0, 1e4);
+    x.hole_radius_px = r.number(d, "noise.dropouts", "hole_radius_px", x.hole_radius_px, 1, 100);
+  }
+  if (const YAML::Node e = n["edges"]) {
+    r.only(e, "noise.edges", {"enabled", "jump_m", "p_drop", "p_flying"});
+    EdgeEffects& x = noise.edges;
+    x.enabled = r.boolean(e, "noise.edges", "enabled", true);
+    x.jump = r.number(e, "noise.edges", "jump_m", x.jump, 1e-6, 10);
+    x.p_drop = r.number(e, "noise.edges", "p_drop", x.p_drop, 0, 1);
+    x.p_flying = r.number(e, "noise.edges", "p_flying", x.p_flying, 0, 1);
+  }
+  noise.quantize = r.boolean(n, "noise", "quantize", noise.quantize);
+}
+
+void read_segmentation(const Reader& r, const YAML::Node& n, ExtractParams& p) {
+  const char* w = "segmentation";
+  r.only(n, w,
+         {"mode", "leakage", "leakage_px", "min_depth_m", "max_depth_m", "crop_min_m",
+          "crop_max_m", "max_planes", "plane_threshold_m", "min_plane_fraction",
+          "ransac_iterations"});
+  p.mode = ExtractParams::mode_from(r.choice(n, w, "mode", "truth", {"truth", "depth"}));
+  p.leakage = r.number(n, w, "leakage", p.leakage, 0, 1);
+  p.leakage_px = static_cast<int>(r.number(n, w, "leakage_px", p.leakage_px, 0, 50));
+  p.min_depth = r.number(n, w, "min_depth_m", p.min_depth, 0, 100);
+  p.max_depth = r.number(n, w, "max_depth_m", p.max_depth, 0, 100);
+  if (!(p.max_depth > p.min_depth)) r.fail(n, "segmentation.max_depth_m", "must exceed min_depth_m");
+  if (n["crop_min_m"] || n["crop_max_m"]) {
+    if (!n["crop_min_m"] || !n["crop_max_m"])
+      r.fail(n, "segmentation.crop_min_m", "give crop_min_m and crop_max_m together");
+    p.crop_C = Eigen::AlignedBox3d(r.vec3(n, w, "crop_min_m", Eigen::Vector3d::Zero()),
+                                   r.vec3(n, w, "crop_max_m", Eigen::Vector3d::Zero()));
+    if (p.crop_C->isEmpty()) r.fail(n["crop_max_m"], "segmentation.crop_max_m", "box is empty");
+  }
+  p.max_planes = static_cast<int>(r.number(n, w, "max_planes", p.max_planes, 0, 10));
+  p.plane_threshold = r.number(n, w, "plane_threshold_m", p.plane_threshold, 1e-5, 1);
+  p.min_plane_fraction = r.number(n, w, "min_plane_fraction", p.min_plane_fraction, 1e-3, 1);
+  p.ransac_iterations =
+      static_cast<int>(r.number(n, w, "ransac_iterations", p.ransac_iterations, 1, 100000));
+}
+
+void read_background(const Reader& r, const YAML::Node& b, const std::filesystem::path& base,
+                     std::vector<BackgroundObject>& out) {
+  r.only(b, "background", {"table", "wall", "objects"});
+  if (const YAML::Node t = b["table"]) {
+    r.only(t, "background.table", {"height_m", "center_m", "half_size_m", "reflectance"});
+    BackgroundObject o;
+    const double h = r.number(t, "background.table", "height_m", 0.3, -10, 10);
+    const Eigen::Vector3d c = r.vec3(t, "background.table", "center_m", {0.25, 0.0, 0.0});
+    const Eigen::Vector3d hs = r.vec3(t, "background.table", "half_size_m", {0.6, 0.6, 0.01});
+    if (!(hs.minCoeff() > 0)) r.fail(t["half_size_m"], "background.table.half_size_m", "must all be > 0");
+    o.shape.half_extents = hs;
+    o.X_WO.translation() = Eigen::Vector3d(c.x(), c.y(), h - hs.z());  // top face at height_m
+    o.reflectance = r.number(t, "background.table", "reflectance", 1.0, 0, 10);
+    out.push_back(o);
+  }
+  if (const YAML::Node wl = b["wall"]) {
+    r.only(wl, "background.wall", {"position_m", "rpy_deg", "half_extents_m", "reflectance"});
+    BackgroundObject o;
+    o.shape.half_extents = r.vec3(wl, "background.wall", "half_extents_m", {1.0, 0.01, 1.0});
+    if (!(o.shape.half_extents.minCoeff() > 0))
+      r.fail(wl["half_extents_m"], "background.wall.half_extents_m", "must all be > 0");
+    o.X_WO = r.pose(wl, "background.wall");
+    o.reflectance = r.number(wl, "background.wall", "reflectance", 1.0, 0, 10);
+    out.push_back(o);
+  }
+  if (const YAML::Node objs = b["objects"]) {
+    if (!objs.IsSequence()) r.fail(objs, "background.objects", "expected a list");
+    for (std::size_t i = 0; i < objs.size(); ++i) {
+      const std::string at = "background.objects[" + std::to_string(i) + "]";
+      r.only(objs[i], at, with(kShapeKeys, {"position_m", "rpy_deg"}));
+      BackgroundObject o;
+      o.shape = r.shape(objs[i], at, base);
+      o.X_WO = r.pose(objs[i], at);
+      o.reflectance = r.number(objs[i], at, "reflectance", 1.0, 0, 10);
+      out.push_back(o);
+    }
+  }
+}
+
 
 }  // namespace
 
@@ -141,13 +374,29 @@ Scene load_scene(const std::filesystem::path& path) {
   }
   const Reader r(file);
   if (!root.IsMap()) r.fail(root, "(top level)", "expected a mapping");
-  r.only(root, "", {"duration_s", "seed", "camera", "chain", "world", "base", "actions"});
+  r.only(root, "", {"duration_s", "seed", "camera", "noise", "occluders", "background",
+                    "segmentation", "chain", "world", "base", "actions"});
+  const std::filesystem::path base = path.parent_path();
   Scene s;
   s.duration_s = r.number(root, "", "duration_s", s.duration_s, 1e-3, 3600.0);
   s.seed = static_cast<std::uint64_t>(r.number(root, "", "seed", 1.0, 0.0, 9007199254740992.0));
-  if (const YAML::Node c = root["camera"]) {
-    r.only(c, "camera", {"fps"});
-    s.camera_fps = r.number(c, "camera", "fps", s.camera_fps, 1.0, 1000.0);
+  if (const YAML::Node c = root["camera"]) read_camera(r, c, s.camera);
+  if (const YAML::Node n = root["noise"]) read_noise(r, n, s.noise);
+  if (const YAML::Node n = root["segmentation"]) read_segmentation(r, n, s.segmentation);
+  if (const YAML::Node b = root["background"]) read_background(r, b, base, s.background);
+  if (const YAML::Node o = root["occluders"]) {
+    if (!o.IsSequence()) r.fail(o, "occluders", "expected a list");
+    if (o.size() > static_cast<std::size_t>(kMaxOccluders))
+      r.fail(o, "occluders", "at most " + std::to_string(kMaxOccluders));
+    for (std::size_t i = 0; i < o.size(); ++i) {
+      const std::string at = "occluders[" + std::to_string(i) + "]";
+      r.only(o[i], at, with(kShapeKeys, {"path"}));
+      Occluder oc;
+      oc.shape = r.shape(o[i], at, base);
+      oc.reflectance = r.number(o[i], at, "reflectance", 1.0, 0, 10);
+      if (const YAML::Node route = o[i]["path"]) oc.path = r.trajectory(route, at + ".path");
+      s.occluders.push_back(oc);
+    }
   }
   if (const YAML::Node c = root["chain"]) {
     r.only(c, "chain",
@@ -226,6 +475,8 @@ Scene load_scene(const std::filesystem::path& path) {
   try {
     s.chain.validate();
     s.world.validate();
+    s.noise.validate();
+    s.segmentation.validate();
   } catch (const std::invalid_argument& e) {
     throw io::InputError(file + ": " + e.what());
   }
@@ -240,6 +491,14 @@ std::unique_ptr<World> make_world(const Scene& scene) {
   for (const auto& p : scene.pushers) w->add_pusher(p);
   for (const auto& o : scene.obstacles) w->add_obstacle(o);
   return w;
+}
+
+std::unique_ptr<Sensor> make_sensor(const Scene& scene, int threads) {
+  SensorParams p;
+  p.camera = scene.camera;
+  p.noise = scene.noise;
+  p.threads = threads;
+  return std::make_unique<Sensor>(p, scene.chain.geometry, scene.occluders, scene.background);
 }
 
 }  // namespace linksight::sim

@@ -8,6 +8,10 @@
 #include <memory>
 #include <vector>
 
+#include "linksight/sim/camera.hpp"
+#include "linksight/sim/extract.hpp"
+#include "linksight/sim/noise.hpp"
+#include "linksight/sim/sensor.hpp"
 #include "linksight/sim/world.hpp"
 
 namespace linksight::sim {
@@ -15,7 +19,11 @@ namespace linksight::sim {
 struct Scene {
   double duration_s = 5.0;  ///< [s]
   std::uint64_t seed = 1;
-  double camera_fps = 30.0;  ///< truth is sampled at the camera rate [1/s]
+  CameraParams camera;  ///< truth and frames are sampled at camera.fps
+  NoiseParams noise;    ///< preset sr300 unless the scene says otherwise
+  std::vector<Occluder> occluders;
+  std::vector<BackgroundObject> background;  ///< table, wall and clutter
+  ExtractParams segmentation;
   ChainParams chain;
   WorldParams world;
   BaseTrajectory base;  ///< pose of the base over time (default: identity)
@@ -25,10 +33,14 @@ struct Scene {
   std::vector<ObstacleParams> obstacles;
 };
 
-/// Reads a scene; throws linksight::io::InputError "<file>:<line>: <key>: <problem>".
+/// Reads a scene; mesh files are relative to the scene file's directory. Throws linksight::io::InputError "<file>:<line>: <key>: <problem>".
 [[nodiscard]] Scene load_scene(const std::filesystem::path& path);
 
 /// Builds the world of a scene at t = 0.
 [[nodiscard]] std::unique_ptr<World> make_world(const Scene& scene);
+
+/// Builds the scene's camera (with `noise` and `threads`) and its occluders and
+/// background. Throws io::InputError for a missing mesh file.
+[[nodiscard]] std::unique_ptr<Sensor> make_sensor(const Scene& scene, int threads = 0);
 
 }  // namespace linksight::sim

@@ -1,0 +1,54 @@
+#pragma once
+/// @file A rendered sequence on disk, laid out like a real recording so that
+/// `linksight track --input DIR/depth` reads it as it reads a camera's:
+///   DIR/depth/NNNNNN.png     uint16 depth (intrinsics.depth_scale per unit, 0 = none)
+///   DIR/labels/NNNNNN.png    uint8 labels (component 0..count-1, 100+k occluder k,
+///                            200 background, 255 nothing)
+///   DIR/clouds/NNNNNN.ply    the extracted cloud [m, C]
+///   DIR/intrinsics.json      the format `linksight track` reads
+///   DIR/camera.json          X_WC (4x4 row-major), fps, z range
+///   DIR/truth.csv            frame,t_s,node,x_m,y_m,z_m: true nodes in the camera frame
+///   DIR/occlusion.csv        frame,component,visible_px,visible_px_unoccluded,occluded_fraction
+
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+#include "linksight/sim/camera.hpp"
+#include "linksight/sim/sensor.hpp"
+#include "linksight/sim/world.hpp"
+#include "linksight/tracker/cloud.hpp"
+
+namespace linksight::sim {
+
+/// Writes an 8-bit grayscale PNG atomically. Throws io::InputError naming the path.
+void write_label_png(const std::filesystem::path& path, int width, int height,
+                     const std::vector<std::uint8_t>& labels);
+/// Reads an 8-bit grayscale PNG. Throws io::InputError naming the path.
+[[nodiscard]] std::vector<std::uint8_t> read_label_png(const std::filesystem::path& path,
+                                                       int& width, int& height);
+/// camera.json: {"X_WC": [16 numbers, row-major], "fps", "z_min_m", "z_max_m"}.
+void write_camera_json(const std::filesystem::path& path, const CameraParams& camera);
+
+/// Streams a recording into a staging directory beside `dir`; commit() renames it to
+/// `dir` (replacing an old one only when `force`). Without commit() nothing is left.
+class Recorder {
+ public:
+  /// Throws io::InputError when `dir` exists and !force, or cannot be created.
+  Recorder(std::filesystem::path dir, const CameraParams& camera, bool force);
+  ~Recorder();
+  Recorder(const Recorder&) = delete;
+  Recorder& operator=(const Recorder&) = delete;
+
+  void write_frame(int frame, const Truth& truth, const DepthFrame& image, const Cloud& cloud);
+  void commit();
+
+ private:
+  std::filesystem::path dir_, staging_;
+  CameraParams camera_;
+  bool force_ = false, committed_ = false;
+  std::ofstream truth_, occlusion_;
+};
+
+}  // namespace linksight::sim

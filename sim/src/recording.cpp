@@ -1,0 +1,164 @@
+#include "linksight/sim/recording.hpp"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "linksight/io/atomic_file.hpp"
+#include "linksight/io/depth_png.hpp"
+#include "linksight/io/error.hpp"
+#include "linksight/io/intrinsics.hpp"
+#include "linksight/io/ply.hpp"
+
+// A private copy of stb (static functions): tracker_io has its own.
+#define STB_IMAGE_STATIC
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_ONLY_PNG
+#define STBI_NO_STDIO
+#define STBI_FAILURE_USERMSG
+#define STB_IMAGE_WRITE_STATIC
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#define STBI_WRITE_NO_STDIO
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-function"
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
+#pragma GCC diagnostic ignored "-Wsign-compare"
+#pragma GCC diagnostic ignored "-Wshadow"
+#pragma GCC diagnostic ignored "-Wpedantic"
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#include <stb/stb_image.h>
+#include <stb/stb_image_write.h>
+#pragma GCC diagnostic pop
+
+namespace linksight::sim {
+namespace fs = std::filesystem;
+
+void write_label_png(const fs::path& path, int width, int height,
+                     const std::vector<std::uint8_t>& labels) {
+  if (width <= 0 || height <= 0 || labels.size() != static_cast<std::size_t>(width) * height)
+    throw io::InputError(path.string() + ": label image size does not match its data");
+  std::string png;
+  const int ok = stbi_write_png_to_func(
+      [](void* ctx, void* data, int size) {
+        static_cast<std::string*>(ctx)->append(static_cast<const char*>(data),
+                                               static_cast<std::size_t>(size));
+      },
+      &png, width, height, 1, labels.data(), width);
+  if (!ok) throw io::InputError(path.string() + ": cannot encode PNG");
+  io::write_file_atomic(path, [&](std::ostream& out) { out << png; }, true);
+}
+
+std::vector<std::uint8_t> read_label_png(const fs::path& path, int& width, int& height) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw io::InputError(path.string() + ": cannot open");
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  int channels = 0;
+  if (!stbi_info_from_memory(reinterpret_cast<const unsigned char*>(bytes.data()),
+                             static_cast<int>(bytes.size()), &width, &height, &channels) ||
+      channels != 1 ||
+      stbi_is_16_bit_from_memory(reinterpret_cast<const unsigned char*>(bytes.data()),
+                                 static_cast<int>(bytes.size()))) {
+    throw io::InputError(path.string() + ": not an 8-bit single-channel PNG");
+  }
+  unsigned char* data =
+      stbi_load_from_memory(reinterpret_cast<const unsigned char*>(bytes.data()),
+                            static_cast<int>(bytes.size()), &width, &height, &channels, 1);
+  if (!data) throw io::InputError(path.string() + ": " + stbi_failure_reason());
+  std::vector<std::uint8_t> out(data, data + static_cast<std::size_t>(width) * height);
+  stbi_image_free(data);
+  return out;
+}
+
+void write_camera_json(const fs::path& path, const CameraParams& camera) {
+  nlohmann::json X = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) X.push_back(camera.X_WC.matrix()(r, c));
+  const nlohmann::json j = {{"X_WC", X},
+                            {"fps", camera.fps},
+                            {"z_min_m", camera.z_min},
+                            {"z_max_m", camera.z_max}};
+  io::write_file_atomic(path, [&](std::ostream& out) { out << j.dump(2) << '\n'; });
+}
+
+namespace {
+std::string frame_name(int frame, const char* ext) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%06d.%s", frame, ext);
+  return buf;
+}
+}  // namespace
+
+Recorder::Recorder(fs::path dir, const CameraParams& camera, bool force)
+    : dir_(std::move(dir)), camera_(camera), force_(force) {
+  std::error_code ec;
+  if (fs::exists(dir_, ec) && !force_)
+    throw io::InputError(dir_.string() + ": output directory exists (use --force to replace it)");
+  const fs::path parent = dir_.has_parent_path() ? dir_.parent_path() : fs::path(".");
+  fs::create_directories(parent, ec);
+  if (ec) throw io::InputError(parent.string() + ": cannot create directory: " + ec.message());
+  staging_ = parent / (dir_.filename().string() + ".partial-" + std::to_string(::getpid()));
+  fs::remove_all(staging_, ec);
+  for (const char* sub : {"depth", "labels", "clouds"}) {
+    fs::create_directories(staging_ / sub, ec);
+    if (ec) throw io::InputError(dir_.string() + ": cannot create output directory: " + ec.message());
+  }
+  truth_.open(staging_ / "truth.csv");
+  occlusion_.open(staging_ / "occlusion.csv");
+  if (!truth_ || !occlusion_) throw io::InputError(dir_.string() + ": cannot write");
+  truth_ << "frame,t_s,node,x_m,y_m,z_m\n" << std::fixed << std::setprecision(6);
+  occlusion_ << "frame,component,visible_px,visible_px_unoccluded,occluded_fraction\n"
+             << std::fixed << std::setprecision(6);
+}
+
+Recorder::~Recorder() {
+  if (!committed_) {
+    truth_.close();
+    occlusion_.close();
+    std::error_code ec;
+    fs::remove_all(staging_, ec);
+  }
+}
+
+void Recorder::write_frame(int frame, const Truth& truth, const DepthFrame& image,
+                           const Cloud& cloud) {
+  io::write_depth_png(staging_ / "depth" / frame_name(frame, "png"), image.depth);
+  write_label_png(staging_ / "labels" / frame_name(frame, "png"), image.width, image.height,
+                  image.label);
+  io::write_ply(staging_ / "clouds" / frame_name(frame, "ply"), cloud);
+  const Eigen::Isometry3d X_CW = camera_.X_WC.inverse();
+  for (std::size_t j = 0; j < truth.nodes_W.size(); ++j) {
+    const Eigen::Vector3d p_C = X_CW * truth.nodes_W[j];
+    truth_ << frame << ',' << truth.t << ',' << j << ',' << p_C.x() << ',' << p_C.y() << ','
+           << p_C.z() << '\n';
+  }
+  for (std::size_t c = 0; c < image.visible_px.size(); ++c) {
+    occlusion_ << frame << ',' << c << ',' << image.visible_px[c] << ','
+               << image.visible_px_unoccluded[c] << ',' << image.occluded_fraction[c] << '\n';
+  }
+  if (!truth_ || !occlusion_) throw io::InputError(dir_.string() + ": write failed");
+}
+
+void Recorder::commit() {
+  io::write_intrinsics(staging_ / "intrinsics.json", camera_.intrinsics);
+  write_camera_json(staging_ / "camera.json", camera_);
+  truth_.close();
+  occlusion_.close();
+  if (!truth_ || !occlusion_) throw io::InputError(dir_.string() + ": write failed");
+  std::error_code ec;
+  fs::path old;
+  if (fs::exists(dir_, ec)) {
+    old = dir_.string() + ".old-" + std::to_string(::getpid());
+    fs::rename(dir_, old, ec);
+    if (ec) throw io::InputError(dir_.string() + ": cannot replace: " + ec.message());
+  }
+  fs::rename(staging_, dir_, ec);
+  if (ec) throw io::InputError(dir_.string() + ": cannot finish: " + ec.message());
+  committed_ = true;
+  if (!old.empty()) fs::remove_all(old, ec);
+}
+
+}  // namespace linksight::sim
