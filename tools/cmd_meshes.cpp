@@ -41,6 +41,28 @@ int run_meshes(const MeshesOptions& o) {
     std::cout << "wrote " << path.string() << " (" << mesh.vertices.size() << " vertices, "
               << mesh.triangles.size() << " triangles)\n";
   }
+  const struct {
+    const char* file;
+    sim::TriangleMesh mesh;
+    const char* what;
+  } props[] = {
+      {"hand.obj", sim::hand_mesh(),
+       "An occluder: a hand on a forearm (palm box, finger and thumb cylinders, forearm).\n"
+       "Units: metres. Palm centred at the origin facing +-y, fingers along +z."},
+      {"mug.obj", sim::mug_mesh(),
+       "Clutter: a mug, radius 0.04 m, 0.10 m tall, standing on z = 0, handle on +x.\n"
+       "Units: metres."},
+  };
+  for (const auto& prop : props) {
+    const fs::path p = fs::path(o.out) / prop.file;
+    sim::write_obj(p, prop.mesh,
+                   std::string("linksight ") + prop.what +
+                       "\nGenerated, do not edit. Regenerate: build/tools/linksight meshes --out meshes");
+    if (!o.quiet) {
+      std::cout << "wrote " << p.string() << " (" << prop.mesh.vertices.size() << " vertices, "
+                << prop.mesh.triangles.size() << " triangles)\n";
+    }
+  }
   return kExitOk;
 }
 

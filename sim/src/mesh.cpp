@@ -150,6 +150,41 @@ TriangleMesh sphere_mesh(double radius, int segments) {
   return mesh;
 }
 
+void append(TriangleMesh& mesh, const TriangleMesh& part, const Eigen::Isometry3d& X) {
+  const int base = static_cast<int>(mesh.vertices.size());
+  for (const Eigen::Vector3f& v : part.vertices)
+    mesh.vertices.push_back((X * v.cast<double>()).cast<float>());
+  for (const Eigen::Vector3i& t : part.triangles)
+    mesh.triangles.push_back(t + Eigen::Vector3i::Constant(base));
+}
+
+TriangleMesh hand_mesh() {
+  auto at = [](double x, double y, double z, double tilt_about_y = 0.0) {
+    Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+    X.linear() = Eigen::AngleAxisd(tilt_about_y, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    X.translation() = Eigen::Vector3d(x, y, z);
+    return X;
+  };
+  TriangleMesh m;
+  append(m, box_mesh({0.042, 0.012, 0.05}));                        // palm
+  const double lengths[4] = {0.032, 0.040, 0.037, 0.030};           // index .. little
+  for (int f = 0; f < 4; ++f)
+    append(m, cylinder_mesh(0.009, lengths[f], 24), at(-0.0315 + 0.021 * f, 0, 0.05 + lengths[f]));
+  append(m, cylinder_mesh(0.011, 0.03, 24), at(0.055, 0, 0.01, 0.6));  // thumb
+  append(m, cylinder_mesh(0.03, 0.12, 32), at(0, 0, -0.16));           // forearm
+  return m;
+}
+
+TriangleMesh mug_mesh() {
+  TriangleMesh m;
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.translation() = Eigen::Vector3d(0, 0, 0.05);
+  append(m, cylinder_mesh(0.04, 0.05, 48), X);
+  X.translation() = Eigen::Vector3d(0.05, 0, 0.05);
+  append(m, box_mesh({0.012, 0.006, 0.03}), X);  // handle
+  return m;
+}
+
 void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh,
                const std::string& comment) {
   const auto n = static_cast<long long>(mesh.vertices.size());

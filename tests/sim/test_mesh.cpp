@@ -172,6 +172,30 @@ TEST(CommittedMesh, LoadsWithAssimpAndIsCurrent) {
   EXPECT_NEAR(signed_volume(committed, committed.triangles), v, 1e-3 * v);
 }
 
+TEST(CommittedMesh, HandAndMugLoadAndAreCurrent) {
+  for (const auto& [name, fresh] :
+       {std::pair<const char*, TriangleMesh>{"hand.obj", hand_mesh()}, {"mug.obj", mug_mesh()}}) {
+    const fs::path path = fs::path(LINKSIGHT_MESH_DIR) / name;
+    const TriangleMesh committed = load_mesh(path);
+    EXPECT_EQ(committed.triangles.size(), fresh.triangles.size())
+        << path << " is stale: regenerate with build/tools/linksight meshes --out meshes";
+    const double v = signed_volume(fresh, fresh.triangles);
+    EXPECT_GT(v, 0) << name << ": parts must be closed and outward-oriented";
+    EXPECT_NEAR(signed_volume(committed, committed.triangles), v, 1e-3 * v) << name;
+  }
+}
+
+TEST(Primitives, BoxCylinderSphereVolumes) {
+  EXPECT_NEAR(signed_volume(box_mesh({0.1, 0.2, 0.3}), box_mesh({0.1, 0.2, 0.3}).triangles),
+              8 * 0.1 * 0.2 * 0.3, 1e-6 * 0.048);  // float vertices
+  const TriangleMesh c = cylinder_mesh(0.05, 0.1, 256);
+  EXPECT_NEAR(signed_volume(c, c.triangles), std::numbers::pi * 0.05 * 0.05 * 0.2, 1e-3 * 0.0016);
+  const TriangleMesh s = sphere_mesh(0.05, 256);
+  EXPECT_NEAR(signed_volume(s, s.triangles), 4.0 / 3 * std::numbers::pi * 1.25e-4, 1e-3 * 5.2e-4);
+  EXPECT_THROW((void)box_mesh({0.1, 0.0, 0.1}), std::invalid_argument);
+  EXPECT_THROW((void)cylinder_mesh(0.0, 0.1), std::invalid_argument);
+}
+
 TEST(LoadMesh, MissingFileThrowsInputErrorNamingTheFile) {
   const std::string path = (fs::temp_directory_path() / "linksight_no_such_mesh.obj").string();
   try {

@@ -2,7 +2,7 @@
 /// @file Triangle meshes of the link's component (for rendering and the simulator) and
 /// a loader for mesh files of any format assimp reads.
 
-#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -32,6 +32,17 @@ struct TriangleMesh {
 [[nodiscard]] TriangleMesh cylinder_mesh(double radius, double half_length, int slices = 48);
 /// A UV sphere centred at the origin; `segments` slices, segments/4 bands per hemisphere.
 [[nodiscard]] TriangleMesh sphere_mesh(double radius, int segments = 48);
+
+/// Appends `part` moved by X to `mesh`.
+void append(TriangleMesh& mesh, const TriangleMesh& part,
+            const Eigen::Isometry3d& X = Eigen::Isometry3d::Identity());
+
+/// An occluder shaped like a hand on a forearm, about human size: palm centred at the
+/// origin facing +-y, fingers along +z, forearm along -z (meshes/hand.obj).
+[[nodiscard]] TriangleMesh hand_mesh();
+/// A mug for clutter: a cylinder of radius 4 cm, 10 cm tall, standing on z = 0, with a
+/// handle on +x (meshes/mug.obj).
+[[nodiscard]] TriangleMesh mug_mesh();
 
 /// Writes `mesh` as Wavefront OBJ (v / f lines, 1-based), atomically. Each line of
 /// `comment` (if any) becomes a leading "# " line. Throws linksight::io::InputError
