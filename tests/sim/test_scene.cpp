@@ -99,5 +99,61 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
   }
 }
 
+// Sensor keys: bad values name their key and line.
+TEST_F(BadScene, SensorKeysNameLineAndKey) {
+  auto has = [&](const std::string& yaml, const std::string& needle) {
+    const std::string e = error_of(yaml);
+    EXPECT_NE(e.find(needle), std::string::npos) << "got: " << e;
+  };
+  has("camera:\n  fx: 0\n", ":2: camera.fx: 0.000000 is out of range");
+  has("camera:\n  width: 0\n", "camera.width");
+  has("camera:\n  z_min_m: 1.5\n  z_max_m: 1.0\n", ":3: camera.z_max_m: must be greater");
+  has("camera:\n  preset: kinect\n", "camera.preset: 'kinect' is not one of sr300");
+  has("camera:\n  X_WC: [1, 0, 0]\n", "camera.X_WC: expected 16 numbers");
+  has("camera:\n  look_at: {eye_m: [0, 0, 1], target_m: [0, 0, 0]}\n",
+      "camera.look_at: look_at: view direction is parallel to up");
+  has("noise:\n  preset: loud\n", "noise.preset: 'loud' is not one of off, sr300");
+  has("noise:\n  edges: {p_drop: 2}\n", ":2: noise.edges.p_drop: 2.000000 is out of range");
+  has("noise:\n  axial: {sigma: 1}\n", "noise.axial.sigma: unknown key");
+  has("occluders:\n  - shape: cone\n", ":2: occluders[0].shape: 'cone' is not one of");
+  has("occluders:\n  - shape: mesh\n    mesh: nowhere/hand.obj\n",
+      ":3: occluders[0].mesh: " + (dir / "nowhere/hand.obj").string() + ": mesh file not found");
+  has("occluders:\n  - shape: box\n    mesh: a.obj\n", "occluders[0].mesh: only for shape: mesh");
+  has("background:\n  objects:\n    - {shape: box, half_extents_m: [0.1, 0, 0.1]}\n",
+      "background.objects[0].half_extents_m: must all be > 0");
+  has("segmentation:\n  mode: colour\n", "segmentation.mode: 'colour' is not one of depth, truth");
+  has("segmentation:\n  crop_min_m: [0, 0, 0]\n", "give crop_min_m and crop_max_m together");
+}
+
+TEST(Scene, SensorKeysReachTheStructs) {
+  const Scene s = load_scene(kScenes / "occluder_pass.yaml");
+  EXPECT_EQ(s.occluders.size(), 2u);
+  EXPECT_EQ(s.occluders[0].shape.kind, Shape::Kind::mesh);
+  EXPECT_TRUE(std::filesystem::exists(s.occluders[0].shape.mesh));
+  EXPECT_EQ(s.background.size(), 3u);  // table, wall, mug
+  EXPECT_NEAR(s.camera.X_WC.translation().y(), -0.6, 1e-12);
+  // The table's top face is at height_m.
+  EXPECT_NEAR(s.background[0].X_WO.translation().z() + s.background[0].shape.half_extents.z(),
+              0.30, 1e-12);
+  const Scene c = load_scene(kScenes / "clutter.yaml");
+  EXPECT_EQ(c.segmentation.mode, ExtractParams::Mode::depth);
+  ASSERT_TRUE(c.segmentation.crop_C.has_value());
+  EXPECT_DOUBLE_EQ(c.segmentation.crop_C->max().z(), 0.75);
+  auto sensor = make_sensor(c);
+  EXPECT_EQ(sensor->params().noise.shadow.baseline, NoiseParams::sr300().shadow.baseline);
+}
+
+TEST_F(BadScene, NoiseOverridesStartFromThePreset) {
+  const auto p = dir / "scene.yaml";
+  std::ofstream(p) << "noise:\n  preset: off\n  axial: {a_m: 0.001}\n"
+                   << "camera:\n  X_WC: [1, 0, 0, 0.1,  0, 1, 0, 0.2,  0, 0, 1, 0.3,  0, 0, 0, 1]\n";
+  const Scene s = load_scene(p);
+  EXPECT_TRUE(s.noise.axial.enabled);  // a block switches its term on unless it says not
+  EXPECT_DOUBLE_EQ(s.noise.axial.a, 0.001);
+  EXPECT_FALSE(s.noise.shadow.enabled);
+  EXPECT_FALSE(s.noise.edges.enabled);
+  EXPECT_DOUBLE_EQ(s.camera.X_WC.translation().z(), 0.3);
+}
+
 }  // namespace
 }  // namespace linksight::sim
