@@ -59,7 +59,9 @@ int run_render(const RenderOptions& o) {
     std::cout << "rendered " << frames << " frames of " << o.scene << " ("
               << points / std::max(frames, 1) << " points per frame, up to "
               << static_cast<int>(occluded * 100 + 0.5) << "% of the link occluded); wrote "
-              << o.out << "\n  track it: linksight track --input " << o.out << "/depth\n";
+              << o.out << "\n  track the segmented clouds: linksight track --input " << o.out
+              << "/clouds\n  or the raw depth, as from a camera: linksight track --input " << o.out
+              << "/depth --max-depth M --crop ...\n";
   }
   return kExitOk;
 }

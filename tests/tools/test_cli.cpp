@@ -8,6 +8,7 @@
 
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/ply.hpp"
+#include "linksight/sim/recording.hpp"
 #include "test_support.hpp"
 
 namespace linksight {
@@ -195,6 +196,13 @@ TEST_F(Cli, DeviceFromTheEnvironmentUnlessTheFlagSaysOtherwise) {
                    "--cl-platform 7", "does not exist");
 }
 
+std::string slurp_text(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
 TEST_F(Cli, SimulateWritesTruthAtTheCameraRate) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
   const CliRun r = run("simulate --scene " + scene + " --frames 10 --out " + out.string(), dir);
@@ -216,6 +224,115 @@ TEST_F(Cli, SimulateWritesTruthAtTheCameraRate) {
   EXPECT_NE(bad.err.find("bad.yaml:2: chain.preload_n: expected a number"), std::string::npos)
       << bad.err;
   EXPECT_FALSE(fs::exists(out));
+}
+
+std::size_t valid_pixels(const io::DepthImage& d) {
+  return static_cast<std::size_t>(std::count_if(d.data.begin(), d.data.end(),
+                                                [](std::uint16_t v) { return v > 0; }));
+}
+
+std::vector<std::string> lines_of(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  return lines;
+}
+
+// A rendered scene with occluders, meshes and background is laid out like a real
+// recording, its parts agree with each other, and track replays it.
+TEST_F(Cli, RenderWritesARecordingThatTrackReplays) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/occluder_pass.yaml";
+  const CliRun r = run("render --scene " + scene + " --frames 3 --out " + out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* f : {"intrinsics.json", "camera.json", "truth.csv", "occlusion.csv"})
+    EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
+  const io::Intrinsics k = io::read_intrinsics(out / "intrinsics.json");
+  EXPECT_EQ(k.width, 640);
+  EXPECT_DOUBLE_EQ(k.depth_scale, 0.000125);
+  for (const char* frame : {"000000", "000001", "000002"}) {
+    const io::DepthImage depth = io::read_depth_png(out / "depth" / (std::string(frame) + ".png"));
+    int w = 0, h = 0;
+    const std::vector<std::uint8_t> labels =
+        sim::read_label_png(out / "labels" / (std::string(frame) + ".png"), w, h);
+    ASSERT_EQ(w, 640);
+    ASSERT_EQ(h, 480);
+    std::size_t link = 0, background = 0;
+    for (std::size_t i = 0; i < labels.size(); ++i) {
+      link += labels[i] < 11 && depth.data[i] > 0;
+      background += labels[i] == sim::kLabelBackground && depth.data[i] > 0;
+    }
+    EXPECT_GT(background, 100000u) << "table and wall";
+    // truth segmentation: the cloud is exactly the link's pixels with depth.
+    EXPECT_EQ(io::read_ply(out / "clouds" / (std::string(frame) + ".ply")).size(), link);
+  }
+  const auto truth = lines_of(out / "truth.csv");
+  ASSERT_EQ(truth.size(), 1u + 3 * 12);
+  EXPECT_EQ(truth[0], "frame,t_s,node,x_m,y_m,z_m");
+  // Camera frame: the base node is about 0.62 m in front of the camera.
+  double z = 0;
+  std::sscanf(truth[1].c_str(), "0,%*f,0,%*f,%*f,%lf", &z);
+  EXPECT_NEAR(z, 0.62, 0.05) << truth[1];
+  EXPECT_EQ(lines_of(out / "occlusion.csv").size(), 1u + 3 * 11);
+  const std::string camera = slurp_text(out / "camera.json");
+  EXPECT_NE(camera.find("\"X_WC\""), std::string::npos);
+  EXPECT_NE(camera.find("\"fps\": 30"), std::string::npos) << camera;
+  // Replays through track, from the segmented clouds and from raw depth.
+  const CliRun t = run("track --quiet --input " + (out / "clouds").string() + " --out " +
+                           (dir / "track").string(), dir);
+  ASSERT_EQ(t.code, 0) << t.err;
+  EXPECT_EQ(lines_of(dir / "track" / "frames.csv").size(), 4u);
+  const CliRun raw = run("track --quiet --input " + (out / "depth").string() +
+                             " --max-depth 0.9 --out " + (dir / "track_raw").string(), dir);
+  ASSERT_EQ(raw.code, 0) << raw.err;
+  EXPECT_EQ(lines_of(dir / "track_raw" / "frames.csv").size(), 4u);
+}
+
+TEST_F(Cli, RenderNoiseOffIsTheIdealCamera) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  ASSERT_EQ(run("render --quiet --noise off --scene " + scene + " --frames 2 --out " +
+                    (dir / "off").string(), dir).code, 0);
+  ASSERT_EQ(run("render --quiet --scene " + scene + " --frames 2 --out " +
+                    (dir / "on").string(), dir).code, 0);
+  const io::DepthImage off0 = io::read_depth_png(dir / "off" / "depth" / "000000.png");
+  const io::DepthImage on0 = io::read_depth_png(dir / "on" / "depth" / "000000.png");
+  const io::DepthImage on1 = io::read_depth_png(dir / "on" / "depth" / "000001.png");
+  int w = 0, h = 0;
+  const auto labels = sim::read_label_png(dir / "off" / "labels" / "000000.png", w, h);
+  const auto hits = static_cast<std::size_t>(std::count_if(
+      labels.begin(), labels.end(), [](std::uint8_t l) { return l != sim::kLabelNothing; }));
+  EXPECT_EQ(valid_pixels(off0), hits) << "the ideal camera loses no pixel it sees";
+  EXPECT_GT(hits, 3000u);
+  EXPECT_NE(on0.data, on1.data) << "noise is drawn per frame";
+  EXPECT_LT(valid_pixels(on0), valid_pixels(off0)) << "edges, shadows and holes lose pixels";
+  EXPECT_EQ(io::read_ply(dir / "off" / "clouds" / "000000.ply").size(), valid_pixels(off0));
+}
+
+TEST_F(Cli, RenderBadInputLeavesNothing) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  auto bad = [&](const std::string& args, const std::string& names) {
+    const CliRun r = run("render " + args + " --out " + out.string(), dir);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out)) << args;
+    for (const auto& e : fs::directory_iterator(dir))
+      EXPECT_EQ(e.path().filename().string().find("result.partial"), std::string::npos);
+  };
+  bad("--scene " + scene + " --noise loud", "--noise");
+  bad("--scene " + (dir / "none.yaml").string(), "none.yaml: cannot open scene");
+  std::ofstream(dir / "hand.yaml") << "occluders:\n  - shape: mesh\n    mesh: gone.obj\n";
+  bad("--scene " + (dir / "hand.yaml").string(), "hand.yaml:3: occluders[0].mesh: ");
+  // An existing output directory is refused unless --force, and kept as it was.
+  fs::create_directories(out);
+  std::ofstream(out / "keep.txt") << "mine";
+  const CliRun r = run("render --scene " + scene + " --frames 1 --out " + out.string(), dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("output directory exists (use --force"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(out / "keep.txt"));
+  const CliRun f =
+      run("render --quiet --force --scene " + scene + " --frames 1 --out " + out.string(), dir);
+  EXPECT_EQ(f.code, 0) << f.err;
+  EXPECT_FALSE(fs::exists(out / "keep.txt"));
+  EXPECT_TRUE(fs::exists(out / "depth" / "000000.png"));
 }
 
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {

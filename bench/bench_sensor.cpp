@@ -1,0 +1,63 @@
+// One simulated SR300 frame (640x480) with sr300 noise: render (scene update, primary and
+// projector-shadow rays, occlusion pass, noise and artefacts) plus cloud extraction, for
+// the link alone and for scenes/occluder_pass.yaml at t = 2.3 s (the hand in front of the
+// link's middle; table, wall and mug behind).
+// Counters give the ms of each stage; the argument is the OpenMP thread count.
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+
+#include "linksight/sim/extract.hpp"
+#include "linksight/sim/scene.hpp"
+
+namespace {
+using namespace linksight::sim;
+
+void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractParams::Mode mode) {
+  Scene scene = load_scene(std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file);
+  scene.segmentation.mode = mode;
+  auto world = make_world(scene);
+  const double t = 2.3;
+  const Truth truth = world->truth();  // the chain at rest; the hand moves with t
+  auto sensor = make_sensor(scene, static_cast<int>(state.range(0)));
+  DepthFrame frame;
+  double cast = 0, occlusion = 0, noise = 0, scene_s = 0, extract = 0;
+  std::uint64_t f = 0;
+  std::size_t points = 0;
+  for (auto _ : state) {
+    sensor->render(truth.X_WK, t, scene.seed, f, frame);
+    const auto t0 = std::chrono::steady_clock::now();
+    const linksight::Cloud cloud = extract_cloud(frame, scene.camera.intrinsics,
+                                                 scene.chain.geometry.count, scene.segmentation,
+                                                 scene.seed, f);
+    extract += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    benchmark::DoNotOptimize(cloud.xyz.data());
+    points = cloud.size();
+    const SensorTimes& s = sensor->last_times();
+    scene_s += s.scene;
+    cast += s.cast;
+    occlusion += s.occlusion;
+    noise += s.noise;
+    ++f;
+  }
+  const double n = static_cast<double>(state.iterations());
+  state.counters["scene_ms"] = 1e3 * scene_s / n;
+  state.counters["cast_shadow_ms"] = 1e3 * cast / n;
+  state.counters["occlusion_ms"] = 1e3 * occlusion / n;
+  state.counters["noise_ms"] = 1e3 * noise / n;
+  state.counters["extract_ms"] = 1e3 * extract / n;
+  state.counters["points"] = static_cast<double>(points);
+  state.counters["occluded_pct"] = 100.0 * frame.link_occluded_fraction;
+}
+// The link alone (scenes/static.yaml): most rays miss, as with a far background.
+BENCHMARK_CAPTURE(BM_SensorFrame, link_only, "static.yaml", ExtractParams::Mode::truth)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+// Every ray hits: table, wall, mug, hand and board.
+BENCHMARK_CAPTURE(BM_SensorFrame, occluder_pass_truth, "occluder_pass.yaml",
+                  ExtractParams::Mode::truth)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SensorFrame, occluder_pass_depth, "occluder_pass.yaml",
+                  ExtractParams::Mode::depth)
+    ->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
