@@ -56,10 +56,18 @@ ComponentGeometry one_component() {
   return g;
 }
 
-// Noise-free depth in float metres back-projects onto the analytic ball or neck surface.
-TEST(Sensor, NoiseOffLabelledPixelsLieOnTheAnalyticSurface) {
+// Noise-free depth in float metres back-projects onto the analytic ball or neck surface,
+// with a pinhole camera and with the SR300's inverse Brown-Conrady model: the sensor casts
+// through the same deprojection the reader of real depth PNGs uses.
+class SensorSurface : public ::testing::TestWithParam<io::Distortion> {};
+
+TEST_P(SensorSurface, NoiseOffLabelledPixelsLieOnTheAnalyticSurface) {
   const ComponentGeometry g;
-  Sensor sensor(side_view(NoiseParams::off()), g);
+  SensorParams params = side_view(NoiseParams::off());
+  params.camera.intrinsics.model = GetParam();
+  if (GetParam() != io::Distortion::none)
+    params.camera.intrinsics.coeffs = {0.14, -0.05, 0.003, 0.004, 0.01};  // SR300-like
+  Sensor sensor(params, g);
   const auto X_WK = straight_chain(g);
   const DepthFrame f = sensor.render(X_WK, 0.0, 1, 0);
   const io::Intrinsics& K = sensor.params().camera.intrinsics;
@@ -84,6 +92,13 @@ TEST(Sensor, NoiseOffLabelledPixelsLieOnTheAnalyticSurface) {
   for (int c = 0; c < g.count; ++c) EXPECT_GT(seen[c], 100) << "component " << c;
   EXPECT_DOUBLE_EQ(f.link_occluded_fraction, 0.0);
 }
+INSTANTIATE_TEST_SUITE_P(Distortion, SensorSurface,
+                         ::testing::Values(io::Distortion::none,
+                                           io::Distortion::inverse_brown_conrady),
+                         [](const auto& p) {
+                           return p.param == io::Distortion::none ? "pinhole"
+                                                                      : "inverse_brown_conrady";
+                         });
 
 TEST(Sensor, NoiseOffPlaneGivesItsDepthUpToQuantization) {
   NoiseParams noise = NoiseParams::off();
