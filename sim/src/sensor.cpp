@@ -98,6 +98,25 @@ void set_transform(RTCGeometry g, const Eigen::Isometry3d& X) {
   rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, m);
 }
 
+// Lane i of a packet: a ray from `o` along `d` with the given mask, no hit yet.
+void set_lane(RTCRayHit16& rh, int i, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+              unsigned mask) {
+  rh.ray.org_x[i] = static_cast<float>(o.x());
+  rh.ray.org_y[i] = static_cast<float>(o.y());
+  rh.ray.org_z[i] = static_cast<float>(o.z());
+  rh.ray.dir_x[i] = static_cast<float>(d.x());
+  rh.ray.dir_y[i] = static_cast<float>(d.y());
+  rh.ray.dir_z[i] = static_cast<float>(d.z());
+  rh.ray.tnear[i] = 0.0F;
+  rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
+  rh.ray.mask[i] = mask;
+  rh.ray.time[i] = 0.0F;
+  rh.ray.flags[i] = 0;
+  rh.ray.id[i] = static_cast<unsigned>(i);
+  rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+}
+
 }  // namespace
 
 void Shape::validate() const {
@@ -405,20 +424,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       const Eigen::Vector3d d = u < W ? direction(u, v, static_cast<std::size_t>(v) * W + u)
                                       : Eigen::Vector3d::UnitZ();
       dirs[i] = d;
-      rh.ray.org_x[i] = static_cast<float>(o_W.x());
-      rh.ray.org_y[i] = static_cast<float>(o_W.y());
-      rh.ray.org_z[i] = static_cast<float>(o_W.z());
-      rh.ray.dir_x[i] = static_cast<float>(d.x());
-      rh.ray.dir_y[i] = static_cast<float>(d.y());
-      rh.ray.dir_z[i] = static_cast<float>(d.z());
-      rh.ray.tnear[i] = 0.0F;
-      rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
-      rh.ray.mask[i] = 0xFFFFFFFFu;  // Debian's Embree filters by mask
-      rh.ray.time[i] = 0.0F;
-      rh.ray.flags[i] = 0;
-      rh.ray.id[i] = static_cast<unsigned>(i);
-      rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+      set_lane(rh, i, o_W, d, 0xFFFFFFFFu);  // Debian's Embree filters by mask
     }
     rtcIntersect16(valid, m.top, &ctx, &rh);
     alignas(64) RTCRay16 sr;
@@ -519,20 +525,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
         // Inactive lanes get a finite ray too (see above).
         const Eigen::Vector3d d =
             valid[i] ? direction(u, v, pix) : Eigen::Vector3d::UnitZ();  // the same jittered ray
-        rh.ray.org_x[i] = static_cast<float>(o_W.x());
-        rh.ray.org_y[i] = static_cast<float>(o_W.y());
-        rh.ray.org_z[i] = static_cast<float>(o_W.z());
-        rh.ray.dir_x[i] = static_cast<float>(d.x());
-        rh.ray.dir_y[i] = static_cast<float>(d.y());
-        rh.ray.dir_z[i] = static_cast<float>(d.z());
-        rh.ray.tnear[i] = 0.0F;
-        rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
-        rh.ray.mask[i] = kMaskScene;
-        rh.ray.time[i] = 0.0F;
-        rh.ray.flags[i] = 0;
-        rh.ray.id[i] = static_cast<unsigned>(i);
-        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+        set_lane(rh, i, o_W, d, kMaskScene);
       }
       if (!any) continue;
       RTCIntersectContext ctx;

@@ -5,17 +5,13 @@
 #include <numbers>
 
 #include "linksight/sim/extract.hpp"
+#include "test_support.hpp"
 
 namespace linksight::sim {
 namespace {
 
 std::vector<Eigen::Isometry3d> straight_chain(const ComponentGeometry& g) {
-  std::vector<Eigen::Isometry3d> X(g.count, Eigen::Isometry3d::Identity());
-  for (int c = 0; c < g.count; ++c) {
-    X[c].linear() = Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitY()).matrix();
-    X[c].translation() = Eigen::Vector3d(c * g.pitch, 0.0, 0.5);
-  }
-  return X;
+  return test::straight_chain_frames(g);
 }
 
 // The chain 0.5 m in front of the camera over a table (top at z = 0.4) before a wall

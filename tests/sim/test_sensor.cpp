@@ -7,6 +7,7 @@
 
 #include "linksight/io/error.hpp"
 #include "linksight/sim/sensor.hpp"
+#include "test_support.hpp"
 
 namespace linksight::sim {
 namespace {
@@ -17,12 +18,7 @@ constexpr double kShadowTolPx = 1.0;     // issue 5: shadow width within one pix
 
 // Component frames of a straight chain leaving (0, 0, 0.5) along +x (frame K's z).
 std::vector<Eigen::Isometry3d> straight_chain(const ComponentGeometry& g) {
-  std::vector<Eigen::Isometry3d> X(g.count, Eigen::Isometry3d::Identity());
-  for (int c = 0; c < g.count; ++c) {
-    X[c].linear() = Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitY()).matrix();
-    X[c].translation() = Eigen::Vector3d(c * g.pitch, 0.0, 0.5);
-  }
-  return X;
+  return test::straight_chain_frames(g);
 }
 
 // A camera 0.5 m in front of the straight chain (on -y), looking at its middle.

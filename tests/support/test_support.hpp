@@ -16,6 +16,17 @@
 
 namespace linksight::test {
 
+/// Component frames [W] of a straight chain leaving (0, 0, 0.5) along +x (each frame's z),
+/// as the simulated camera's tests see it.
+inline std::vector<Eigen::Isometry3d> straight_chain_frames(const ComponentGeometry& g) {
+  std::vector<Eigen::Isometry3d> X(g.count, Eigen::Isometry3d::Identity());
+  for (int c = 0; c < g.count; ++c) {
+    X[c].linear() = Eigen::AngleAxisd(1.5707963267948966, Eigen::Vector3d::UnitY()).matrix();
+    X[c].translation() = Eigen::Vector3d(c * g.pitch, 0.0, 0.5);
+  }
+  return X;
+}
+
 /// A cloud's finite points as separate arrays, for the functions that take PointsView.
 struct Soa {
   std::vector<float> x, y, z;
