@@ -32,8 +32,7 @@ int run_render(const RenderOptions& o) {
     throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 0");
   if (o.threads < 0)
     throw std::invalid_argument("--threads = " + std::to_string(o.threads) + ": must be >= 0");
-  const int frames =
-      o.frames > 0 ? o.frames : static_cast<int>(scene.duration_s * scene.camera.fps) + 1;
+  const int frames = sim::camera_frames(scene, o.frames);
   std::unique_ptr<sim::World> world = sim::make_world(scene);
   std::unique_ptr<sim::Sensor> sensor = sim::make_sensor(scene, o.threads);
   sim::Recorder recorder(o.out, scene.camera, o.force);
@@ -41,8 +40,7 @@ int run_render(const RenderOptions& o) {
   std::size_t points = 0;
   double occluded = 0;
   for (int f = 0; f < frames; ++f) {
-    const double t_frame = f / scene.camera.fps;
-    while (world->time() + 0.5 * scene.world.dt < t_frame) world->step();
+    world->step_until(f / scene.camera.fps);
     const sim::Truth truth = world->truth();
     sensor->render(truth.X_WK, truth.t, scene.seed, static_cast<std::uint64_t>(f), image);
     const Cloud cloud = sim::extract_cloud(image, scene.camera.intrinsics,

@@ -1,6 +1,5 @@
 // linksight simulate: a scene's physics, truth sampled at the camera rate.
 #include <filesystem>
-#include <iomanip>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -8,6 +7,7 @@
 #include "commands.hpp"
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/error.hpp"
+#include "linksight/sim/recording.hpp"
 #include "linksight/sim/scene.hpp"
 
 namespace linksight::cli {
@@ -25,22 +25,17 @@ int run_simulate(const SimulateOptions& o) {
   const sim::Scene scene = sim::load_scene(o.scene);
   if (o.frames < 0)
     throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 0");
-  const int frames =
-      o.frames > 0 ? o.frames : static_cast<int>(scene.duration_s * scene.camera.fps) + 1;
+  const int frames = sim::camera_frames(scene, o.frames);
   std::unique_ptr<sim::World> world = sim::make_world(scene);
   std::ostringstream truth;
-  truth << "frame,t_s,node,x_m,y_m,z_m\n" << std::fixed << std::setprecision(6);
+  sim::write_truth_header(truth);
   int contact_frames = 0;
   for (int f = 0; f < frames; ++f) {
     // Frame f is at t = f / fps: step physics up to it (1 kHz by default).
-    const double t_frame = f / scene.camera.fps;
-    while (world->time() + 0.5 * scene.world.dt < t_frame) world->step();
+    world->step_until(f / scene.camera.fps);  // frame f is at t = f / fps
     const sim::Truth t = world->truth();
     contact_frames += t.contact ? 1 : 0;
-    for (std::size_t j = 0; j < t.nodes_W.size(); ++j) {
-      truth << f << ',' << t.t << ',' << j << ',' << t.nodes_W[j].x() << ',' << t.nodes_W[j].y()
-            << ',' << t.nodes_W[j].z() << '\n';
-    }
+    sim::write_truth_rows(truth, f, t);
   }
   std::error_code ec;
   fs::create_directories(o.out, ec);

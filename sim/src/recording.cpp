@@ -37,6 +37,19 @@
 namespace linksight::sim {
 namespace fs = std::filesystem;
 
+void write_truth_header(std::ostream& out) {
+  out << "frame,t_s,node,x_m,y_m,z_m\n" << std::fixed << std::setprecision(6);
+}
+
+void write_truth_rows(std::ostream& out, int frame, const Truth& truth,
+                      const Eigen::Isometry3d& X_FW) {
+  for (std::size_t j = 0; j < truth.nodes_W.size(); ++j) {
+    const Eigen::Vector3d p = X_FW * truth.nodes_W[j];
+    out << frame << ',' << truth.t << ',' << j << ',' << p.x() << ',' << p.y() << ',' << p.z()
+        << '\n';
+  }
+}
+
 void write_label_png(const fs::path& path, int width, int height,
                      const std::vector<std::uint8_t>& labels) {
   if (width <= 0 || height <= 0 || labels.size() != static_cast<std::size_t>(width) * height)
@@ -109,7 +122,7 @@ Recorder::Recorder(fs::path dir, const CameraParams& camera, bool force)
   truth_.open(staging_ / "truth.csv");
   occlusion_.open(staging_ / "occlusion.csv");
   if (!truth_ || !occlusion_) throw io::InputError(dir_.string() + ": cannot write");
-  truth_ << "frame,t_s,node,x_m,y_m,z_m\n" << std::fixed << std::setprecision(6);
+  write_truth_header(truth_);
   occlusion_ << "frame,component,visible_px,visible_px_unoccluded,occluded_fraction\n"
              << std::fixed << std::setprecision(6);
 }
@@ -129,12 +142,7 @@ void Recorder::write_frame(int frame, const Truth& truth, const DepthFrame& imag
   write_label_png(staging_ / "labels" / frame_name(frame, "png"), image.width, image.height,
                   image.label);
   io::write_ply(staging_ / "clouds" / frame_name(frame, "ply"), cloud);
-  const Eigen::Isometry3d X_CW = camera_.X_WC.inverse();
-  for (std::size_t j = 0; j < truth.nodes_W.size(); ++j) {
-    const Eigen::Vector3d p_C = X_CW * truth.nodes_W[j];
-    truth_ << frame << ',' << truth.t << ',' << j << ',' << p_C.x() << ',' << p_C.y() << ','
-           << p_C.z() << '\n';
-  }
+  write_truth_rows(truth_, frame, truth, camera_.X_WC.inverse());
   for (std::size_t c = 0; c < image.visible_px.size(); ++c) {
     occlusion_ << frame << ',' << c << ',' << image.visible_px[c] << ','
                << image.visible_px_unoccluded[c] << ',' << image.occluded_fraction[c] << '\n';

@@ -493,6 +493,10 @@ std::unique_ptr<World> make_world(const Scene& scene) {
   return w;
 }
 
+int camera_frames(const Scene& scene, int requested) {
+  return requested > 0 ? requested : static_cast<int>(scene.duration_s * scene.camera.fps) + 1;
+}
+
 std::unique_ptr<Sensor> make_sensor(const Scene& scene, int threads) {
   SensorParams p;
   p.camera = scene.camera;

@@ -11,7 +11,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "linksight/io/error.hpp"
 #include "linksight/tracker/seed.hpp"
 
 namespace linksight::sim {
@@ -98,21 +97,26 @@ void set_transform(RTCGeometry g, const Eigen::Isometry3d& X) {
   rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, m);
 }
 
-// Lane i of a packet: a ray from `o` along `d` with the given mask, no hit yet.
+// Lane i of a packet: a ray from `o` along `d` over [0, tfar] with the given mask.
+void set_lane(RTCRay16& r, int i, const Eigen::Vector3d& o, const Eigen::Vector3d& d, float tfar,
+              unsigned mask) {
+  r.org_x[i] = static_cast<float>(o.x());
+  r.org_y[i] = static_cast<float>(o.y());
+  r.org_z[i] = static_cast<float>(o.z());
+  r.dir_x[i] = static_cast<float>(d.x());
+  r.dir_y[i] = static_cast<float>(d.y());
+  r.dir_z[i] = static_cast<float>(d.z());
+  r.tnear[i] = 0.0F;
+  r.tfar[i] = tfar;
+  r.mask[i] = mask;
+  r.time[i] = 0.0F;
+  r.flags[i] = 0;
+  r.id[i] = static_cast<unsigned>(i);
+}
+// The same for an intersection packet, with no hit yet.
 void set_lane(RTCRayHit16& rh, int i, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
               unsigned mask) {
-  rh.ray.org_x[i] = static_cast<float>(o.x());
-  rh.ray.org_y[i] = static_cast<float>(o.y());
-  rh.ray.org_z[i] = static_cast<float>(o.z());
-  rh.ray.dir_x[i] = static_cast<float>(d.x());
-  rh.ray.dir_y[i] = static_cast<float>(d.y());
-  rh.ray.dir_z[i] = static_cast<float>(d.z());
-  rh.ray.tnear[i] = 0.0F;
-  rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
-  rh.ray.mask[i] = mask;
-  rh.ray.time[i] = 0.0F;
-  rh.ray.flags[i] = 0;
-  rh.ray.id[i] = static_cast<unsigned>(i);
+  set_lane(rh.ray, i, o, d, std::numeric_limits<float>::infinity(), mask);
   rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
 }
@@ -152,10 +156,7 @@ TriangleMesh Shape::triangles() const {
     case Kind::sphere:
       return sphere_mesh(radius);
     case Kind::mesh: {
-      std::error_code ec;
-      if (!std::filesystem::is_regular_file(mesh, ec))
-        throw io::InputError(mesh.string() + ": mesh file not found");
-      TriangleMesh m = load_mesh(mesh);
+      TriangleMesh m = load_mesh(mesh);  // names a missing or bad file
       for (Eigen::Vector3f& v : m.vertices) v *= static_cast<float>(scale);
       return m;
     }
@@ -433,17 +434,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     for (int i = 0; i < kPacket; ++i) {
       // Every lane holds a finite ray: Embree's coherent path reads inactive lanes too.
       svalid[i] = 0;
-      sr.org_x[i] = static_cast<float>(o_W.x());
-      sr.org_y[i] = static_cast<float>(o_W.y());
-      sr.org_z[i] = static_cast<float>(o_W.z());
-      sr.dir_x[i] = sr.dir_y[i] = 0.0F;
-      sr.dir_z[i] = 1.0F;
-      sr.tnear[i] = 0.0F;
-      sr.tfar[i] = 0.0F;
-      sr.mask[i] = 0xFFFFFFFFu;
-      sr.time[i] = 0.0F;
-      sr.flags[i] = 0;
-      sr.id[i] = static_cast<unsigned>(i);
+      set_lane(sr, i, o_W, Eigen::Vector3d::UnitZ(), 0.0F, 0xFFFFFFFFu);
     }
     for (int i = 0; i < kPacket; ++i) {
       if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
@@ -470,18 +461,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
         const Eigen::Vector3d sd = P_W - org;
         svalid[i] = -1;
         any_shadow = true;
-        sr.org_x[i] = static_cast<float>(org.x());
-        sr.org_y[i] = static_cast<float>(org.y());
-        sr.org_z[i] = static_cast<float>(org.z());
-        sr.dir_x[i] = static_cast<float>(sd.x());
-        sr.dir_y[i] = static_cast<float>(sd.y());
-        sr.dir_z[i] = static_cast<float>(sd.z());
-        sr.tnear[i] = 0.0F;
-        sr.tfar[i] = 1.0F;
-        sr.mask[i] = 0xFFFFFFFFu;
-        sr.time[i] = 0.0F;
-        sr.flags[i] = 0;
-        sr.id[i] = static_cast<unsigned>(i);
+        set_lane(sr, i, org, sd, 1.0F, 0xFFFFFFFFu);  // tfar 1: up to the projector
       } else if (shadows) {
         m.lit[pix] = 0;  // the projector sees the surface from behind
       }

@@ -361,6 +361,10 @@ void World::step() {
   ++s.steps;
 }
 
+void World::step_until(double t) {
+  while (time() + 0.5 * impl_->params.dt < t) step();
+}
+
 double World::time() const { return static_cast<double>(impl_->steps) * impl_->params.dt; }
 
 Truth World::truth() const {

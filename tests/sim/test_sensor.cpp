@@ -275,27 +275,22 @@ void expect_invalid(F&& make, const std::string& needle) {
 
 TEST(Sensor, BadParametersAreNamed) {
   const ComponentGeometry g;
-  expect_invalid([&] {
-    SensorParams p;
-    p.camera.intrinsics.fx = 0;
-    Sensor s(p, g);
-  }, "fx");
-  expect_invalid([&] {
-    SensorParams p;
-    p.camera.z_min = 1.5;
-    p.camera.z_max = 1.5;
-    Sensor s(p, g);
-  }, "z_min");
-  expect_invalid([&] {
-    SensorParams p;
-    p.camera.intrinsics.width = 0;
-    Sensor s(p, g);
-  }, "width");
-  expect_invalid([&] {
-    SensorParams p;
-    p.noise.edges.p_drop = 1.5;
-    Sensor s(p, g);
-  }, "edges.p_drop");
+  const struct {
+    void (*spoil)(SensorParams&);
+    const char* names;
+  } cases[] = {
+      {[](SensorParams& p) { p.camera.intrinsics.fx = 0; }, "fx"},
+      {[](SensorParams& p) { p.camera.z_min = p.camera.z_max = 1.5; }, "z_min"},
+      {[](SensorParams& p) { p.camera.intrinsics.width = 0; }, "width"},
+      {[](SensorParams& p) { p.noise.edges.p_drop = 1.5; }, "edges.p_drop"},
+  };
+  for (const auto& c : cases) {
+    expect_invalid([&] {
+      SensorParams p;
+      c.spoil(p);
+      Sensor s(p, g);
+    }, c.names);
+  }
   expect_invalid([&] {
     Occluder o;
     o.shape.kind = Shape::Kind::mesh;

@@ -22,6 +22,12 @@
 
 namespace linksight::sim {
 
+/// truth.csv: writes the header `frame,t_s,node,x_m,y_m,z_m` and sets 6 decimals.
+void write_truth_header(std::ostream& out);
+/// Appends one frame's rows of truth.csv: the true nodes mapped into frame F by X_FW.
+void write_truth_rows(std::ostream& out, int frame, const Truth& truth,
+                      const Eigen::Isometry3d& X_FW = Eigen::Isometry3d::Identity());
+
 /// Writes an 8-bit grayscale PNG atomically. Throws io::InputError naming the path.
 void write_label_png(const std::filesystem::path& path, int width, int height,
                      const std::vector<std::uint8_t>& labels);

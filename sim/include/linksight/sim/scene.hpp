@@ -33,6 +33,10 @@ struct Scene {
   std::vector<ObstacleParams> obstacles;
 };
 
+/// Camera frames in the scene: `requested` if > 0, else every frame of duration_s
+/// (frame f at t = f / fps, both ends included).
+[[nodiscard]] int camera_frames(const Scene& scene, int requested = 0);
+
 /// Reads a scene; mesh files are relative to the scene file's directory. Throws linksight::io::InputError "<file>:<line>: <key>: <problem>".
 [[nodiscard]] Scene load_scene(const std::filesystem::path& path);
 

@@ -103,6 +103,8 @@ class World {
   /// Largest bend between neighbours (or of component 0 against the base) now [rad].
   [[nodiscard]] double max_bend() const;
   void step();  ///< one physics step of WorldParams::dt
+  /// Steps until the nearest step to `t` [s] (no step when time() is already there).
+  void step_until(double t);
   [[nodiscard]] double time() const;
   [[nodiscard]] Truth truth() const;
 
