@@ -12,7 +12,7 @@ namespace linksight::sim {
 namespace {
 
 double unit_draw(std::uint64_t& state) {
-  return static_cast<double>(splitmix64(state) >> 11) * 0x1.0p-53;
+  return unit_interval(splitmix64(state));
 }
 
 }  // namespace
@@ -146,7 +146,7 @@ Cloud extract_cloud(const DepthFrame& frame, const io::Intrinsics& K, int count,
     if (frame.depth.data[i] == 0) continue;
     bool keep = frame.label[i] < count;
     if (!keep && params.leakage > 0 && near[i]) {
-      keep = static_cast<double>(mix64(derive_seed(frame_seed, i)) >> 11) * 0x1.0p-53 <
+      keep = unit_interval(mix64(derive_seed(frame_seed, i))) <
              params.leakage;
     }
     if (keep) masked.data[i] = frame.depth.data[i];

@@ -24,7 +24,7 @@ constexpr int kPacket = 16;
 // Counter-based draws: a (key, stream) pair always gives the same number, whichever
 // thread asks, so noise does not depend on the thread count.
 double uniform(std::uint64_t key, std::uint64_t stream) {
-  return static_cast<double>(mix64(key + stream * 0xD1B54A32D192ED03ull) >> 11) * 0x1.0p-53;
+  return unit_interval(mix64(key + stream * 0xD1B54A32D192ED03ull));
 }
 // N(0, 1) by the inverse CDF (Acklam's rational approximation, relative error 1.2e-9):
 // one uniform per draw and no transcendental call in the central 95%.
@@ -544,7 +544,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   m.hole.assign(n, 0);
   if (noise.dropouts.enabled && noise.dropouts.hole_rate > 0) {
     std::uint64_t state = derive_seed(frame_seed, "holes");
-    auto next = [&] { return static_cast<double>(splitmix64(state) >> 11) * 0x1.0p-53; };
+    auto next = [&] { return unit_interval(splitmix64(state)); };
     // Poisson count: Knuth's product method, or a rounded normal for large rates.
     int holes = 0;
     const double rate = noise.dropouts.hole_rate;

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "linksight/tracker/seed.hpp"
+
 namespace linksight::sim {
 namespace {
 
@@ -14,7 +16,7 @@ namespace {
 class Rng {
  public:
   explicit Rng(std::uint64_t seed) : g_(seed) {}
-  double uniform() { return static_cast<double>(g_() >> 11) * 0x1.0p-53; }
+  double uniform() { return unit_interval(g_()); }
   double normal() {  // Box–Muller
     const double u1 = 1.0 - uniform(), u2 = uniform();
     return std::sqrt(-2.0 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);

@@ -17,3 +17,14 @@ TEST(Seed, DerivedByNameOrIndexNotByOrder) {
 
 }  // namespace
 }  // namespace linksight
+
+namespace linksight {
+namespace {
+TEST(Seed, UnitIntervalCoversZeroToJustBelowOne) {
+  EXPECT_EQ(unit_interval(0), 0.0);
+  EXPECT_EQ(unit_interval(~0ull), 1.0 - 0x1.0p-53);
+  EXPECT_EQ(unit_interval(1ull << 63), 0.5);
+  EXPECT_EQ(unit_interval((1ull << 11) - 1), 0.0) << "only the top 53 bits count";
+}
+}  // namespace
+}  // namespace linksight

@@ -19,6 +19,11 @@ namespace linksight {
   return mix64(state += 0x9E3779B97F4A7C15ull);
 }
 
+/// 64 random bits to a uniform double in [0, 1) (the top 53 bits).
+[[nodiscard]] constexpr double unit_interval(std::uint64_t bits) {
+  return static_cast<double>(bits >> 11) * 0x1.0p-53;
+}
+
 /// Sub-seed for item `index` (a frame, a pixel, a sweep cell) of stream `seed`.
 [[nodiscard]] constexpr std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t index) {
   return mix64(seed ^ mix64(index + 0x9E3779B97F4A7C15ull));
