@@ -63,14 +63,25 @@ struct NormalTable {
 };
 const NormalTable kNormalTable;
 
+// N(0, 1) from 32 random bits: the table's bin is the top 12 bits, the position inside it
+// the other 20. Bits are the centre of one of 2^32 equal bins: p is never 0 or 1, and the
+// extreme draw is 6.3 sigma.
+double normal32(std::uint32_t bits) {
+  static_assert(NormalTable::kBins == 1 << 12);
+  const int i = static_cast<int>(bits >> 20);
+  if (i == 0 || i == NormalTable::kBins - 1)
+    return inverse_normal_cdf((static_cast<double>(bits) + 0.5) * 0x1.0p-32);
+  const double f = (static_cast<double>(bits & 0xFFFFFu) + 0.5) * 0x1.0p-20;
+  return kNormalTable.x[i] + f * (kNormalTable.x[i + 1] - kNormalTable.x[i]);
+}
 double normal(std::uint64_t key, std::uint64_t stream) {
-  // Centre of one of 2^53 equal bins: never 0 or 1.
-  const double p = (static_cast<double>(mix64(key + stream * 0xD1B54A32D192ED03ull) >> 11) + 0.5) *
-                   0x1.0p-53;
-  const double f = p * NormalTable::kBins;
-  const int i = static_cast<int>(f);
-  if (i == 0 || i >= NormalTable::kBins - 1) return inverse_normal_cdf(p);
-  return kNormalTable.x[i] + (f - i) * (kNormalTable.x[i + 1] - kNormalTable.x[i]);
+  return normal32(static_cast<std::uint32_t>(mix64(key + stream * 0xD1B54A32D192ED03ull) >> 32));
+}
+// The largest |normal32|: the draw from bits 0.
+const double kMaxNormal32 = -inverse_normal_cdf(0.5 * 0x1.0p-32);
+// Pixel `pix`'s key: the splitmix64 sequence of the frame's seed, indexed by pixel.
+std::uint64_t pixel_key(std::uint64_t frame_seed, std::size_t pix) {
+  return mix64(frame_seed + (pix + 1) * 0x9E3779B97F4A7C15ull);
 }
 
 // acos on [0, 1] to 2e-8 rad (Abramowitz & Stegun 4.4.46): a third of libm's cost.
@@ -84,7 +95,52 @@ double acos_unit(double x) {
                               x * (-0.0170881256 + x * (0.0066700901 + x * -0.0012624911)))))));
 }
 
-enum Stream : std::uint64_t { kJitterU = 0, kJitterV = 1, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6 };
+// Pixels [u0, u1] x [v0, v1] (inclusive); empty when u0 > u1 or v0 > v1.
+struct PixelRect {
+  int u0 = 0, u1 = -1, v0 = 0, v1 = -1;
+  // Whether the 16 pixels (u, v) ... (u + 15, v) of a packet reach into the rectangle.
+  [[nodiscard]] bool touches(int u, int v) const {
+    return v >= v0 && v <= v1 && u + kPacket - 1 >= u0 && u <= u1;
+  }
+  [[nodiscard]] bool contains(int u, int v) const {
+    return v >= v0 && v <= v1 && u >= u0 && u <= u1;
+  }
+};
+// The pixels whose rays, jittered by at most `margin_px`, can reach the world box
+// [lo, hi]. A pinhole ray reaches the box only if it passes inside the box's projection,
+// and the projection of a convex body lies in the hull of its corners' projections.
+// The whole image when that does not hold: a corner at or behind the camera plane, or a
+// distorted camera.
+PixelRect reachable(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                    const Eigen::Isometry3d& X_WC, const io::Intrinsics& K, double margin_px) {
+  const PixelRect all{0, K.width - 1, 0, K.height - 1};
+  if (!(lo.array() <= hi.array()).all()) return {};  // nothing in the scene
+  if (K.model != io::Distortion::none) return all;
+  const Eigen::Isometry3d X_CW = X_WC.inverse();
+  double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
+  double v_min = u_min, v_max = -u_min;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d p_W((c & 1) ? hi.x() : lo.x(), (c & 2) ? hi.y() : lo.y(),
+                              (c & 4) ? hi.z() : lo.z());
+    const Eigen::Vector3d p_C = X_CW * p_W;
+    if (!(p_C.z() > 1e-6)) return all;
+    const double u = K.fx * p_C.x() / p_C.z() + K.cx, v = K.fy * p_C.y() / p_C.z() + K.cy;
+    u_min = std::min(u_min, u);
+    u_max = std::max(u_max, u);
+    v_min = std::min(v_min, v);
+    v_max = std::max(v_max, v);
+  }
+  // A pixel's ray passes through (u + du, v + dv): keep u within margin of the projection.
+  const auto clamp_to = [](double x, int hi_px) {
+    return static_cast<int>(std::clamp(x, -1.0, static_cast<double>(hi_px) + 1));
+  };
+  return {clamp_to(std::floor(u_min - margin_px), K.width - 1),
+          clamp_to(std::ceil(u_max + margin_px), K.width - 1),
+          clamp_to(std::floor(v_min - margin_px), K.height - 1),
+          clamp_to(std::ceil(v_max + margin_px), K.height - 1)};
+}
+
+enum Stream : std::uint64_t { kJitter = 0, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6 };
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -98,8 +154,8 @@ void set_transform(RTCGeometry g, const Eigen::Isometry3d& X) {
 }
 
 // Lane i of a packet: a ray from `o` along `d` over [0, tfar] with the given mask.
-void set_lane(RTCRay16& r, int i, const Eigen::Vector3d& o, const Eigen::Vector3d& d, float tfar,
-              unsigned mask) {
+template <typename Vec>
+void set_lane(RTCRay16& r, int i, const Vec& o, const Vec& d, float tfar, unsigned mask) {
   r.org_x[i] = static_cast<float>(o.x());
   r.org_y[i] = static_cast<float>(o.y());
   r.org_z[i] = static_cast<float>(o.z());
@@ -114,8 +170,8 @@ void set_lane(RTCRay16& r, int i, const Eigen::Vector3d& o, const Eigen::Vector3
   r.id[i] = static_cast<unsigned>(i);
 }
 // The same for an intersection packet, with no hit yet.
-void set_lane(RTCRayHit16& rh, int i, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
-              unsigned mask) {
+template <typename Vec>
+void set_lane(RTCRayHit16& rh, int i, const Vec& o, const Vec& d, unsigned mask) {
   set_lane(rh.ray, i, o, d, std::numeric_limits<float>::infinity(), mask);
   rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
@@ -195,6 +251,8 @@ struct Sensor::Impl {
   // Per-pixel scratch, kept between frames.
   std::vector<float> cos_c, cos_p;
   std::vector<std::uint8_t> lit, hole, label_no_occluders;
+  std::vector<std::size_t> hole_px;  // this frame's hole pixels
+  Eigen::AlignedBox3d component_box;  // a component's bounds in its own frame K
   SensorTimes times;
 
   ~Impl() {
@@ -310,6 +368,7 @@ Sensor::Sensor(const SensorParams& params, const ComponentGeometry& geometry,
   rtcSetSceneFlags(m.top, RTC_SCENE_FLAG_DYNAMIC);
   rtcSetSceneBuildQuality(m.top, RTC_BUILD_QUALITY_LOW);
   RTCScene comp = m.mesh_scene(component);
+  for (const Eigen::Vector3f& v : component.vertices) m.component_box.extend(v.cast<double>());
   for (int c = 0; c < m.count; ++c) {
     m.chain.push_back(m.instance(comp, Eigen::Isometry3d::Identity(), kMaskScene,
                                  static_cast<std::uint8_t>(c), params.chain_reflectance, m.chain_id));
@@ -373,11 +432,11 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   out.depth.height = H;
   out.depth.data.assign(n, 0);
   out.depth_m.assign(n, 0.0F);
-  out.depth_clean_m.assign(n, 0.0F);
+  out.depth_clean_m.assign(n, 0);
   out.label.assign(n, kLabelNothing);
   out.incidence.assign(n, std::numeric_limits<float>::quiet_NaN());
-  m.cos_c.assign(n, 0.0F);
-  m.cos_p.assign(n, 0.0F);
+  m.cos_c.assign(n, 0);
+  m.cos_p.assign(n, 0);
   m.lit.assign(n, 1);
   const std::uint64_t frame_seed = derive_seed(derive_seed(seed, "sensor"), frame);
   const int threads = m.p.threads > 0 ? m.p.threads : omp_get_max_threads();
@@ -391,20 +450,46 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   const long packets = static_cast<long>(per_row) * H;
   // Ray direction of pixel i in W, scaled so that its camera-frame z is 1: the hit
   // distance t is then the depth.
+  // Rays in float, as Embree takes them.
+  const Eigen::Matrix3f R_WC_f = R_WC.cast<float>();
+  const Eigen::Vector3f o_Wf = o_W.cast<float>();
+  const bool pinhole = K.model == io::Distortion::none;
+  const double inv_fx = 1.0 / K.fx, inv_fy = 1.0 / K.fy;
   auto direction = [&](int u, int v, std::size_t pix) {
     double du = 0, dv = 0;
     if (jitter) {
-      const std::uint64_t key = derive_seed(frame_seed, pix);
-      du = normal(key, kJitterU) * noise.lateral.sigma_px;
-      dv = normal(key, kJitterV) * noise.lateral.sigma_px;
+      // One 64-bit draw, a half for each axis.
+      const std::uint64_t bits = mix64(pixel_key(frame_seed, pix) + kJitter * 0xD1B54A32D192ED03ull);
+      du = normal32(static_cast<std::uint32_t>(bits >> 32)) * noise.lateral.sigma_px;
+      dv = normal32(static_cast<std::uint32_t>(bits)) * noise.lateral.sigma_px;
     }
     // The pinhole case inline (it is most of the per-ray cost); distortion via deproject.
-    const Eigen::Vector3d d_C = K.model == io::Distortion::none
-                                    ? Eigen::Vector3d((u + du - K.cx) / K.fx,
-                                                      (v + dv - K.cy) / K.fy, 1.0)
-                                    : K.deproject(u + du, v + dv, 1.0);
-    return Eigen::Vector3d(R_WC * d_C);
+    const Eigen::Vector3f d_C =
+        pinhole ? Eigen::Vector3f(static_cast<float>((u + du - K.cx) * inv_fx),
+                                  static_cast<float>((v + dv - K.cy) * inv_fy), 1.0F)
+                : K.deproject(u + du, v + dv, 1.0).cast<float>();
+    return Eigen::Vector3f(R_WC_f * d_C);
   };
+  // Inactive shadow lanes still hold a finite ray: Embree's packet path reads them too.
+  alignas(64) RTCRay16 shadow_idle;
+  for (int i = 0; i < kPacket; ++i)
+    set_lane(shadow_idle, i, o_Wf, Eigen::Vector3f(Eigen::Vector3f::UnitZ()), 0.0F, 0xFFFFFFFFu);
+
+  // Culling: pixels outside these rectangles cannot see anything (scene_rect) or cannot
+  // see the chain (chain_rect).
+  const double margin_px = 1.0 + (jitter ? noise.lateral.sigma_px * kMaxNormal32 : 0.0);
+  PixelRect scene_rect{0, W - 1, 0, H - 1}, chain_rect = scene_rect;
+  if (m.p.cull) {
+    RTCBounds b;
+    rtcGetSceneBounds(m.top, &b);
+    scene_rect = reachable(Eigen::Vector3d(b.lower_x, b.lower_y, b.lower_z),
+                           Eigen::Vector3d(b.upper_x, b.upper_y, b.upper_z), m.p.camera.X_WC, K,
+                           margin_px);
+    Eigen::AlignedBox3d chain_W;
+    for (const Eigen::Isometry3d& X : X_WK)
+      for (int c = 0; c < 8; ++c) chain_W.extend(X * m.component_box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c)));
+    chain_rect = reachable(chain_W.min(), chain_W.max(), m.p.camera.X_WC, K, margin_px);
+  }
 
   auto t1 = std::chrono::steady_clock::now();
   // Rows dealt out in small chunks: the link covers a band of rows, so halves would not
@@ -413,32 +498,28 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   for (long pk = 0; pk < packets; ++pk) {
     const int v = static_cast<int>(pk / per_row);
     const int u0 = static_cast<int>(pk % per_row) * kPacket;
+    if (!scene_rect.touches(u0, v)) continue;  // the cleared images hold the misses
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // a packet is 16 neighbouring pixels
     alignas(64) RTCRayHit16 rh;
     alignas(64) int valid[kPacket];
-    Eigen::Vector3d dirs[kPacket];
+    Eigen::Vector3f dirs[kPacket];
     for (int i = 0; i < kPacket; ++i) {
       const int u = u0 + i;
       valid[i] = u < W ? -1 : 0;
-      const Eigen::Vector3d d = u < W ? direction(u, v, static_cast<std::size_t>(v) * W + u)
-                                      : Eigen::Vector3d::UnitZ();
-      dirs[i] = d;
-      set_lane(rh, i, o_W, d, 0xFFFFFFFFu);  // Debian's Embree filters by mask
+      dirs[i] = u < W ? direction(u, v, static_cast<std::size_t>(v) * W + u)
+                      : Eigen::Vector3f::UnitZ();
+      set_lane(rh, i, o_Wf, dirs[i], 0xFFFFFFFFu);  // Debian's Embree filters by mask
     }
     rtcIntersect16(valid, m.top, &ctx, &rh);
-    alignas(64) RTCRay16 sr;
-    alignas(64) int svalid[kPacket];
+    alignas(64) RTCRay16 sr;  // filled from shadow_idle on the first shadow ray
+    alignas(64) int svalid[kPacket] = {};
     bool any_shadow = false;
     for (int i = 0; i < kPacket; ++i) {
-      // Every lane holds a finite ray: Embree's coherent path reads inactive lanes too.
-      svalid[i] = 0;
-      set_lane(sr, i, o_W, Eigen::Vector3d::UnitZ(), 0.0F, 0xFFFFFFFFu);
-    }
-    for (int i = 0; i < kPacket; ++i) {
-      if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+      if (!valid[i]) continue;
       const std::size_t pix = static_cast<std::size_t>(v) * W + u0 + i;
+      if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
       const unsigned inst = rh.hit.instID[0][i];
       const double tz = rh.ray.tfar[i];
       // Embree reports instance hits' normals in the instance's own frame.
@@ -446,9 +527,10 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
                                                             rh.hit.Ng_z[i]))
                                 .cast<double>()
                                 .normalized();
-      const Eigen::Vector3d d = dirs[i].normalized();
+      const Eigen::Vector3d d_i = dirs[i].cast<double>();
+      const Eigen::Vector3d d = d_i.normalized();
       if (nrm.dot(d) > 0) nrm = -nrm;
-      const Eigen::Vector3d p_W = o_W + tz * dirs[i];
+      const Eigen::Vector3d p_W = o_W + tz * d_i;
       const Eigen::Vector3d to_p = P_W - p_W;
       out.label[pix] = m.label_of[inst];
       out.depth_clean_m[pix] = static_cast<float>(tz);
@@ -456,9 +538,11 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       m.cos_c[pix] = static_cast<float>(cos_c);
       out.incidence[pix] = static_cast<float>(acos_unit(cos_c));
       m.cos_p[pix] = static_cast<float>(nrm.dot(to_p) / to_p.norm());
+      m.lit[pix] = 1;
       if (shadows && m.cos_p[pix] > 0) {
         const Eigen::Vector3d org = p_W + 1e-5 * nrm;  // off the surface it starts on
         const Eigen::Vector3d sd = P_W - org;
+        if (!any_shadow) sr = shadow_idle;
         svalid[i] = -1;
         any_shadow = true;
         set_lane(sr, i, org, sd, 1.0F, 0xFFFFFFFFu);  // tfar 1: up to the projector
@@ -485,7 +569,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   out.visible_px_unoccluded.assign(m.count, 0);
   out.occluded_fraction.assign(m.count, 0.0);
   if (!m.occluders.empty()) {
-    m.label_no_occluders.assign(n, kLabelNothing);
+    m.label_no_occluders.resize(n);  // written at every occluder pixel, read only there
 #pragma omp parallel for schedule(dynamic, 40) num_threads(threads)
     for (long pk = 0; pk < packets; ++pk) {
       const int v = static_cast<int>(pk / per_row);
@@ -499,23 +583,32 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
         valid[i] = 0;
         const std::uint8_t l = u < W ? out.label[pix] : kLabelNothing;
         if (l >= kLabelOccluder0 && l < kLabelBackground) {
-          valid[i] = -1;
-          any = true;
+          // Outside chain_rect the chain cannot be behind the occluder.
+          if (chain_rect.contains(u, v)) {
+            valid[i] = -1;
+            any = true;
+          } else {
+            m.label_no_occluders[pix] = kLabelNothing;
+          }
         }
-        // Inactive lanes get a finite ray too (see above).
-        const Eigen::Vector3d d =
-            valid[i] ? direction(u, v, pix) : Eigen::Vector3d::UnitZ();  // the same jittered ray
-        set_lane(rh, i, o_W, d, kMaskScene);
       }
       if (!any) continue;
+      for (int i = 0; i < kPacket; ++i) {
+        const int u = u0 + i;
+        // Inactive lanes get a finite ray too (see above).
+        const Eigen::Vector3f d = valid[i] ? direction(u, v, static_cast<std::size_t>(v) * W + u)
+                                           : Eigen::Vector3f::UnitZ();  // the same jittered ray
+        set_lane(rh, i, o_Wf, d, kMaskScene);
+      }
       RTCIntersectContext ctx;
       rtcInitIntersectContext(&ctx);
       ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
       rtcIntersect16(valid, m.top, &ctx, &rh);
       for (int i = 0; i < kPacket; ++i) {
-        if (valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID)
+        if (valid[i])
           m.label_no_occluders[static_cast<std::size_t>(v) * W + u0 + i] =
-              m.label_of[rh.hit.instID[0][i]];
+              rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID ? m.label_of[rh.hit.instID[0][i]]
+                                                          : kLabelNothing;
       }
     }
   }
@@ -524,7 +617,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     if (l < m.count) {
       ++out.visible_px[l];
       ++out.visible_px_unoccluded[l];
-    } else if (!m.occluders.empty() && m.label_no_occluders[pix] < m.count) {
+    } else if (l >= kLabelOccluder0 && l < kLabelBackground &&
+               m.label_no_occluders[pix] < m.count) {
       ++out.visible_px_unoccluded[m.label_no_occluders[pix]];
     }
   }
@@ -541,7 +635,9 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
 
   // Noise and artefacts, per pixel from the noise-free images.
   t1 = std::chrono::steady_clock::now();
-  m.hole.assign(n, 0);
+  // m.hole is all zero between frames: this frame's discs are set here and cleared after.
+  m.hole.resize(n, 0);
+  m.hole_px.clear();
   if (noise.dropouts.enabled && noise.dropouts.hole_rate > 0) {
     std::uint64_t state = derive_seed(frame_seed, "holes");
     auto next = [&] { return unit_interval(splitmix64(state)); };
@@ -564,9 +660,10 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       for (int v = v0; v <= v1; ++v)
         for (int u = u0; u <= u1; ++u)
           if ((u + 0.5 - cu) * (u + 0.5 - cu) + (v + 0.5 - cv) * (v + 0.5 - cv) <= r * r)
-            m.hole[static_cast<std::size_t>(v) * W + u] = 1;
+            m.hole_px.push_back(static_cast<std::size_t>(v) * W + u);
     }
   }
+  for (std::size_t pix : m.hole_px) m.hole[pix] = 1;
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = m.p.camera.z_min, z_max = m.p.camera.z_max;
   const double unit = K.depth_scale;
@@ -576,7 +673,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       const std::size_t pix = static_cast<std::size_t>(v) * W + u;
       const double z0 = out.depth_clean_m[pix];
       if (z0 <= 0) continue;
-      const std::uint64_t key = derive_seed(frame_seed, pix);
+      const std::uint64_t key = pixel_key(frame_seed, pix);
       if (noise.shadow.enabled && !m.lit[pix]) continue;
       if (noise.dropouts.enabled) {
         const double reflect = out.label[pix] < m.count          ? m.p.chain_reflectance
@@ -623,6 +720,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       out.depth_m[pix] = static_cast<float>(noise.quantize ? q * unit : z);
     }
   }
+  for (std::size_t pix : m.hole_px) m.hole[pix] = 0;
   m.times.noise = seconds_since(t1);
 }
 

@@ -263,6 +263,41 @@ TEST(Sensor, SameImagesForAnyThreadCount) {
   EXPECT_NE(one.render(X, 0.0, 42, 0).depth.data, one.render(X, 0.0, 43, 0).depth.data);
 }
 
+// Culling skips pixels whose rays provably miss: the images must not change. A small
+// occluder over part of the chain and a sphere beside it, with jitter on; the chain is
+// bent and shifted so that its bounds are not the whole image.
+TEST(Sensor, CullingLeavesTheImagesUnchanged) {
+  const ComponentGeometry g;
+  SensorParams p = side_view(NoiseParams::sr300());
+  p.noise.lateral.sigma_px = 2.0;  // a wide jitter margin
+  Occluder hand;
+  hand.shape.half_extents = Eigen::Vector3d(0.03, 0.01, 0.03);
+  hand.path = BaseTrajectory(
+      {{0.0, Eigen::Isometry3d(Eigen::Translation3d(0.2, -0.15, 0.5))},
+       {1.0, Eigen::Isometry3d(Eigen::Translation3d(0.45, -0.15, 0.55))}},
+      {});
+  BackgroundObject ball;
+  ball.shape.kind = Shape::Kind::sphere;
+  ball.shape.radius = 0.02;
+  ball.X_WO.translation() = Eigen::Vector3d(-0.05, 0.1, 0.6);
+  std::vector<Eigen::Isometry3d> X = straight_chain(g);
+  for (std::size_t k = 0; k < X.size(); ++k)
+    X[k].translation() += Eigen::Vector3d(0.0, 0.0, 0.001 * static_cast<double>(k * k));
+  p.cull = false;
+  Sensor reference(p, g, {hand}, {ball});
+  p.cull = true;
+  Sensor culled(p, g, {hand}, {ball});
+  for (const double t : {0.0, 0.5, 1.0}) {
+    const DepthFrame a = reference.render(X, t, 7, 3);
+    const DepthFrame b = culled.render(X, t, 7, 3);
+    EXPECT_EQ(a.depth.data, b.depth.data) << "t = " << t;
+    EXPECT_EQ(a.label, b.label) << "t = " << t;
+    EXPECT_EQ(a.visible_px, b.visible_px) << "t = " << t;
+    EXPECT_EQ(a.visible_px_unoccluded, b.visible_px_unoccluded) << "t = " << t;
+    EXPECT_GT(b.link_occluded_fraction, 0.0) << "t = " << t;
+  }
+}
+
 template <class F>
 void expect_invalid(F&& make, const std::string& needle) {
   try {
