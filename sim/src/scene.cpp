@@ -8,6 +8,7 @@
 #include <string>
 
 #include "linksight/io/error.hpp"
+#include "linksight/tracker/seed.hpp"
 
 namespace linksight::sim {
 namespace {
@@ -15,13 +16,26 @@ namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 
 // Reads typed values out of YAML nodes, rejecting unknown keys, with file:line in errors.
+// A `--set key=value` override: the key path and the text given.
+struct Override {
+  std::string key, value;
+};
+
 class Reader {
  public:
-  explicit Reader(std::string file) : file_(std::move(file)) {}
+  Reader(std::string file, std::vector<Override> overrides = {})
+      : file_(std::move(file)), overrides_(std::move(overrides)) {}
 
   [[noreturn]] void fail(const YAML::Node& node, const std::string& key,
                          const std::string& what) const {
-    const int line = node.IsDefined() ? node.Mark().line + 1 : 0;
+    // An overridden key (or one inside it) has no line in the file: name the --set.
+    for (const Override& o : overrides_) {
+      if (key == o.key || key.starts_with(o.key + ".") || key.starts_with(o.key + "[")) {
+        throw io::InputError(file_ + ": --set " + o.key + "=" + o.value + ": " + key + ": " +
+                             what);
+      }
+    }
+    const int line = node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 0;
     throw io::InputError(file_ + ":" + std::to_string(line) + ": " + key + ": " + what);
   }
   void only(const YAML::Node& map, const std::string& where,
@@ -171,7 +185,80 @@ class Reader {
 
  private:
   std::string file_;
+  std::vector<Override> overrides_;
 };
+
+// Applies "a.b[0].c=value" to the tree; intermediate mappings are created, list elements
+// must exist. The value is parsed as YAML.
+Override apply_override(const std::string& file, YAML::Node& root, const std::string& text) {
+  const auto eq = text.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw io::InputError(file + ": --set " + text + ": expected key.path=value");
+  Override o{text.substr(0, eq), text.substr(eq + 1)};
+  auto bad = [&](const std::string& what) {
+    throw io::InputError(file + ": --set " + text + ": " + what);
+  };
+  YAML::Node value;
+  try {
+    value = YAML::Load(o.value);
+  } catch (const YAML::Exception& e) {
+    bad("value is not valid YAML: " + e.msg);
+  }
+  if (!value.IsDefined() || value.IsNull()) bad("no value");
+  // Split into steps: a key name or a list index.
+  struct Step {
+    std::string key;
+    int index = -1;
+  };
+  std::vector<Step> steps;
+  std::size_t i = 0;
+  const std::string& k = o.key;
+  while (i < k.size()) {
+    if (k[i] == '.') {
+      if (i == 0 || i + 1 == k.size() || k[i + 1] == '.') bad("empty key in '" + k + "'");
+      ++i;
+    } else if (k[i] == '[') {
+      const auto close = k.find(']', i);
+      if (close == std::string::npos || steps.empty()) bad("bad index in '" + k + "'");
+      const std::string digits = k.substr(i + 1, close - i - 1);
+      if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos ||
+          digits.size() > 6)
+        bad("bad index '" + digits + "'");
+      steps.push_back({"", std::stoi(digits)});
+      i = close + 1;
+    } else {
+      const auto end = k.find_first_of(".[", i);
+      steps.push_back({k.substr(i, end == std::string::npos ? std::string::npos : end - i)});
+      i = end == std::string::npos ? k.size() : end;
+    }
+  }
+  if (steps.empty() || steps.front().index >= 0) bad("no key");
+  YAML::Node node;
+  node.reset(root);
+  for (std::size_t s = 0; s < steps.size(); ++s) {
+    const bool last = s + 1 == steps.size();
+    if (steps[s].index >= 0) {
+      if (!node.IsSequence() || static_cast<int>(node.size()) <= steps[s].index)
+        bad("the scene has no element " + std::to_string(steps[s].index) + " there");
+      if (last) {
+        node[steps[s].index] = value;
+      } else {
+        YAML::Node next = node[steps[s].index];
+        node.reset(next);
+      }
+      continue;
+    }
+    if (!node.IsMap() && !node.IsNull()) bad("'" + steps[s].key + "' is inside a non-mapping");
+    if (last) {
+      node[steps[s].key] = value;
+    } else {
+      if (!node[steps[s].key]) node[steps[s].key] = YAML::Node(YAML::NodeType::Map);
+      YAML::Node next = node[steps[s].key];
+      node.reset(next);
+    }
+  }
+  return o;
+}
 
 const std::set<std::string> kShapeKeys = {"shape",  "half_extents_m", "radius_m", "half_length_m",
                                           "mesh",   "scale",          "reflectance"};
@@ -358,10 +445,32 @@ void read_background(const Reader& r, const YAML::Node& b, const std::filesystem
   }
 }
 
+void read_tracker(const Reader& r, const YAML::Node& n, TrackerParams& p) {
+  const char* w = "tracker";
+  r.only(n, w,
+         {"mode", "init", "som_init", "backend", "threads", "iterations", "poly_order",
+          "max_points", "tolerance_m"});
+  p.mode = parse_mode(r.choice(n, w, "mode", std::string(to_string(p.mode)),
+                               {"paper", "accelerated-som"}));
+  p.init.method = parse_init(r.choice(n, w, "init", p.init.method == InitMethod::pca ? "pca" : "paper",
+                                      {"paper", "pca"}));
+  p.som_init = r.choice(n, w, "som_init", "straight-line", {"straight-line", "random-sample"}) ==
+                       "straight-line"
+                   ? SomInit::straight_line
+                   : SomInit::random_sample;
+  p.backend = parse_backend(r.choice(n, w, "backend", std::string(to_string(p.backend)),
+                                     {"serial", "openmp", "opencl"}));
+  p.threads = static_cast<int>(r.number(n, w, "threads", p.threads, 0, kMaxThreads));
+  p.iterations = static_cast<int>(r.number(n, w, "iterations", p.iterations, 1, kMaxIterations));
+  p.init.poly_order = static_cast<int>(r.number(n, w, "poly_order", p.init.poly_order, 1, 9));
+  p.init.max_points =
+      static_cast<std::size_t>(r.number(n, w, "max_points", static_cast<double>(p.init.max_points), 0, 1e7));
+  p.tolerance = r.number(n, w, "tolerance_m", p.tolerance, 0, 1);
+}
 
 }  // namespace
 
-Scene load_scene(const std::filesystem::path& path) {
+Scene load_scene(const std::filesystem::path& path, const std::vector<std::string>& overrides) {
   const std::string file = path.string();
   YAML::Node root;
   try {
@@ -372,10 +481,12 @@ Scene load_scene(const std::filesystem::path& path) {
     throw io::InputError(file + ":" + std::to_string(e.mark.line + 1) +
                          ": malformed YAML: " + e.msg);
   }
-  const Reader r(file);
-  if (!root.IsMap()) r.fail(root, "(top level)", "expected a mapping");
+  if (!root.IsMap()) Reader(file).fail(root, "(top level)", "expected a mapping");
+  std::vector<Override> applied;
+  for (const std::string& o : overrides) applied.push_back(apply_override(file, root, o));
+  const Reader r(file, applied);
   r.only(root, "", {"duration_s", "seed", "camera", "noise", "occluders", "background",
-                    "segmentation", "chain", "world", "base", "actions"});
+                    "segmentation", "chain", "world", "base", "actions", "tracker"});
   const std::filesystem::path base = path.parent_path();
   Scene s;
   s.duration_s = r.number(root, "", "duration_s", s.duration_s, 1e-3, 3600.0);
@@ -472,11 +583,17 @@ Scene load_scene(const std::filesystem::path& path) {
       }
     }
   }
+  s.tracker.geometry = s.chain.geometry;
+  s.tracker.nodes = s.chain.geometry.count + 1;
+  s.tracker.init.pitch = s.chain.geometry.pitch;
+  s.tracker.seed = derive_seed(s.seed, "tracker");
+  if (const YAML::Node t = root["tracker"]) read_tracker(r, t, s.tracker);
   try {
     s.chain.validate();
     s.world.validate();
     s.noise.validate();
     s.segmentation.validate();
+    s.tracker.validate();
   } catch (const std::invalid_argument& e) {
     throw io::InputError(file + ": " + e.what());
   }

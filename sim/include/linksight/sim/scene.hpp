@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "linksight/sim/camera.hpp"
@@ -13,6 +14,7 @@
 #include "linksight/sim/noise.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/world.hpp"
+#include "linksight/tracker/tracker.hpp"
 
 namespace linksight::sim {
 
@@ -31,14 +33,25 @@ struct Scene {
   std::vector<GravityAction> gravity_switches;
   std::vector<PusherParams> pushers;
   std::vector<ObstacleParams> obstacles;
+  /// The tracker run on the scene's frames (key `tracker`). Its geometry and pitch are
+  /// the chain's; `--compare` in `linksight run` adds other modes with the same settings.
+  TrackerParams tracker;
 };
 
 /// Camera frames in the scene: `requested` if > 0, else every frame of duration_s
 /// (frame f at t = f / fps, both ends included).
 [[nodiscard]] int camera_frames(const Scene& scene, int requested = 0);
 
-/// Reads a scene; mesh files are relative to the scene file's directory. Throws linksight::io::InputError "<file>:<line>: <key>: <problem>".
-[[nodiscard]] Scene load_scene(const std::filesystem::path& path);
+/// Reads a scene; mesh files are relative to the scene file's directory. Throws
+/// linksight::io::InputError "<file>:<line>: <key>: <problem>".
+///
+/// `overrides` are "key.path=value" strings (the `--set` of the CLI) applied to the YAML
+/// before it is read, so they pass the same checks: "camera.fps=60",
+/// "occluders[0].reflectance=0.5", "noise.axial.a_m=0.001", "tracker.mode=accelerated-som".
+/// A value is YAML ("[0.1, 0.2, 0.3]" for a vector). Errors in an overridden key name
+/// "--set <key>" instead of a line.
+[[nodiscard]] Scene load_scene(const std::filesystem::path& path,
+                               const std::vector<std::string>& overrides = {});
 
 /// Builds the world of a scene at t = 0.
 [[nodiscard]] std::unique_ptr<World> make_world(const Scene& scene);
