@@ -106,67 +106,45 @@ std::string frame_name(int frame, const char* ext) {
 }  // namespace
 
 Recorder::Recorder(fs::path dir, const CameraParams& camera, bool force)
-    : dir_(std::move(dir)), camera_(camera), force_(force) {
+    : out_(std::move(dir), force), camera_(camera) {
   std::error_code ec;
-  if (fs::exists(dir_, ec) && !force_)
-    throw io::InputError(dir_.string() + ": output directory exists (use --force to replace it)");
-  const fs::path parent = dir_.has_parent_path() ? dir_.parent_path() : fs::path(".");
-  fs::create_directories(parent, ec);
-  if (ec) throw io::InputError(parent.string() + ": cannot create directory: " + ec.message());
-  staging_ = parent / (dir_.filename().string() + ".partial-" + std::to_string(::getpid()));
-  fs::remove_all(staging_, ec);
   for (const char* sub : {"depth", "labels", "clouds"}) {
-    fs::create_directories(staging_ / sub, ec);
-    if (ec) throw io::InputError(dir_.string() + ": cannot create output directory: " + ec.message());
+    fs::create_directories(out_.path() / sub, ec);
+    if (ec)
+      throw io::InputError(out_.final_path().string() + ": cannot create output directory: " +
+                           ec.message());
   }
-  truth_.open(staging_ / "truth.csv");
-  occlusion_.open(staging_ / "occlusion.csv");
-  if (!truth_ || !occlusion_) throw io::InputError(dir_.string() + ": cannot write");
+  truth_.open(out_.path() / "truth.csv");
+  occlusion_.open(out_.path() / "occlusion.csv");
+  if (!truth_ || !occlusion_) throw io::InputError(out_.final_path().string() + ": cannot write");
   write_truth_header(truth_);
   occlusion_ << "frame,component,visible_px,visible_px_unoccluded,occluded_fraction\n"
              << std::fixed << std::setprecision(6);
 }
 
-Recorder::~Recorder() {
-  if (!committed_) {
-    truth_.close();
-    occlusion_.close();
-    std::error_code ec;
-    fs::remove_all(staging_, ec);
-  }
-}
+Recorder::~Recorder() = default;
 
 void Recorder::write_frame(int frame, const Truth& truth, const DepthFrame& image,
                            const Cloud& cloud) {
-  io::write_depth_png(staging_ / "depth" / frame_name(frame, "png"), image.depth);
-  write_label_png(staging_ / "labels" / frame_name(frame, "png"), image.width, image.height,
+  io::write_depth_png(out_.path() / "depth" / frame_name(frame, "png"), image.depth);
+  write_label_png(out_.path() / "labels" / frame_name(frame, "png"), image.width, image.height,
                   image.label);
-  io::write_ply(staging_ / "clouds" / frame_name(frame, "ply"), cloud);
+  io::write_ply(out_.path() / "clouds" / frame_name(frame, "ply"), cloud);
   write_truth_rows(truth_, frame, truth, camera_.X_WC.inverse());
   for (std::size_t c = 0; c < image.visible_px.size(); ++c) {
     occlusion_ << frame << ',' << c << ',' << image.visible_px[c] << ','
                << image.visible_px_unoccluded[c] << ',' << image.occluded_fraction[c] << '\n';
   }
-  if (!truth_ || !occlusion_) throw io::InputError(dir_.string() + ": write failed");
+  if (!truth_ || !occlusion_) throw io::InputError(out_.final_path().string() + ": write failed");
 }
 
 void Recorder::commit() {
-  io::write_intrinsics(staging_ / "intrinsics.json", camera_.intrinsics);
-  write_camera_json(staging_ / "camera.json", camera_);
+  io::write_intrinsics(out_.path() / "intrinsics.json", camera_.intrinsics);
+  write_camera_json(out_.path() / "camera.json", camera_);
   truth_.close();
   occlusion_.close();
-  if (!truth_ || !occlusion_) throw io::InputError(dir_.string() + ": write failed");
-  std::error_code ec;
-  fs::path old;
-  if (fs::exists(dir_, ec)) {
-    old = dir_.string() + ".old-" + std::to_string(::getpid());
-    fs::rename(dir_, old, ec);
-    if (ec) throw io::InputError(dir_.string() + ": cannot replace: " + ec.message());
-  }
-  fs::rename(staging_, dir_, ec);
-  if (ec) throw io::InputError(dir_.string() + ": cannot finish: " + ec.message());
-  committed_ = true;
-  if (!old.empty()) fs::remove_all(old, ec);
+  if (!truth_ || !occlusion_) throw io::InputError(out_.final_path().string() + ": write failed");
+  out_.commit();
 }
 
 }  // namespace linksight::sim

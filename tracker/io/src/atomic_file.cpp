@@ -67,4 +67,37 @@ void write_file_atomic(const fs::path& path, const std::function<void(std::ostre
   staged.commit();
 }
 
+StagedDir::StagedDir(fs::path dir, bool force) : dir_(std::move(dir)) {
+  std::error_code ec;
+  if (fs::exists(dir_, ec) && !force)
+    throw InputError(dir_.string() + ": output directory exists (use --force to replace it)");
+  const fs::path parent = dir_.has_parent_path() ? dir_.parent_path() : fs::path(".");
+  fs::create_directories(parent, ec);
+  if (ec) throw InputError(parent.string() + ": cannot create directory: " + ec.message());
+  staging_ = parent / (dir_.filename().string() + ".partial-" + std::to_string(::getpid()));
+  fs::remove_all(staging_, ec);
+  fs::create_directories(staging_, ec);
+  if (ec) throw InputError(dir_.string() + ": cannot create output directory: " + ec.message());
+}
+
+StagedDir::~StagedDir() {
+  if (committed_) return;
+  std::error_code ec;
+  fs::remove_all(staging_, ec);
+}
+
+void StagedDir::commit() {
+  std::error_code ec;
+  fs::path old;
+  if (fs::exists(dir_, ec)) {
+    old = dir_.string() + ".old-" + std::to_string(::getpid());
+    fs::rename(dir_, old, ec);
+    if (ec) throw InputError(dir_.string() + ": cannot replace: " + ec.message());
+  }
+  fs::rename(staging_, dir_, ec);
+  if (ec) throw InputError(dir_.string() + ": cannot finish: " + ec.message());
+  committed_ = true;
+  if (!old.empty()) fs::remove_all(old, ec);
+}
+
 }  // namespace linksight::io

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "linksight/sim/camera.hpp"
+#include "linksight/io/atomic_file.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/world.hpp"
 #include "linksight/tracker/cloud.hpp"
@@ -51,9 +52,8 @@ class Recorder {
   void commit();
 
  private:
-  std::filesystem::path dir_, staging_;
+  io::StagedDir out_;  // declared first: the streams close before it cleans up
   CameraParams camera_;
-  bool force_ = false, committed_ = false;
   std::ofstream truth_, occlusion_;
 };
 

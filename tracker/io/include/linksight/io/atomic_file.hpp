@@ -33,4 +33,24 @@ class StagedFiles {
   std::vector<std::unique_ptr<Entry>> entries_;
 };
 
+/// An output directory that appears whole or not at all: files go into a staging
+/// directory `DIR.partial-PID` beside it; commit() renames it to DIR (replacing an old DIR
+/// only when `force`); the destructor removes an uncommitted staging directory.
+/// Throws InputError naming DIR when it exists and !force, or cannot be created.
+class StagedDir {
+ public:
+  StagedDir(std::filesystem::path dir, bool force);
+  StagedDir(const StagedDir&) = delete;
+  StagedDir& operator=(const StagedDir&) = delete;
+  ~StagedDir();
+  /// Where to write now (the staging directory).
+  [[nodiscard]] const std::filesystem::path& path() const { return staging_; }
+  [[nodiscard]] const std::filesystem::path& final_path() const { return dir_; }
+  void commit();
+
+ private:
+  std::filesystem::path dir_, staging_;
+  bool committed_ = false;
+};
+
 }  // namespace linksight::io

@@ -1,0 +1,67 @@
+#pragma once
+/// @file An episode: the scene's physics, then at each camera frame the sensor, the
+/// cloud, every compared tracker and the scoring. Streams: step() produces one frame and
+/// keeps nothing of earlier ones but the scorers' few numbers per frame.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "linksight/sim/scene.hpp"
+#include "linksight/sim/score.hpp"
+#include "linksight/tracker/tracker.hpp"
+
+namespace linksight::sim {
+
+struct EpisodeOptions {
+  int frames = 0;  ///< camera frames to run; 0: the scene's duration
+  /// Tracker modes to compare on the same frames; empty: the scene's own mode. Each runs
+  /// with the scene's tracker settings and only the mode changed.
+  std::vector<TrackerMode> modes;
+  int threads = 0;  ///< sensor threads (0: the OpenMP default)
+  ScoreParams score;
+  void validate() const;  ///< throws std::invalid_argument naming the field
+};
+
+/// Wall time of each stage of the last frame [s].
+struct EpisodeTimes {
+  double physics = 0, render = 0, extract = 0, score = 0;
+};
+
+/// One camera frame of an episode. Valid until the next step().
+struct EpisodeFrame {
+  int frame = 0;
+  double t = 0;            ///< [s]
+  Truth truth;             ///< world frame W
+  Nodes truth_C;           ///< the true nodes in the camera frame C [m]
+  double truth_motion = 0; ///< largest true node displacement since the last frame [m]
+  const DepthFrame* image = nullptr;
+  const Cloud* cloud = nullptr;
+  std::vector<FrameResult> results;  ///< per compared mode, camera frame
+  std::vector<FrameScore> scores;    ///< per compared mode
+};
+
+class Episode {
+ public:
+  /// Builds the world, the sensor and one tracker per mode. Throws io::InputError for
+  /// a missing mesh, std::invalid_argument for bad options.
+  Episode(const Scene& scene, const EpisodeOptions& options);
+  ~Episode();
+  Episode(const Episode&) = delete;
+  Episode& operator=(const Episode&) = delete;
+
+  [[nodiscard]] int frames() const;  ///< frames the episode will run
+  [[nodiscard]] int done() const;    ///< frames run so far
+  [[nodiscard]] const std::vector<TrackerMode>& modes() const;
+  /// Runs the next frame. Precondition: done() < frames().
+  const EpisodeFrame& step();
+  [[nodiscard]] const EpisodeTimes& last_times() const;
+  /// Per mode, over the frames run so far.
+  [[nodiscard]] std::vector<EpisodeSummary> summaries() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace linksight::sim

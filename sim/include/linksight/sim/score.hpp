@@ -1,0 +1,106 @@
+#pragma once
+/// @file Scoring a tracker's output against the true nodes: per frame, and per episode
+/// (error statistics, events and recovery, timing). Everything in metres and seconds;
+/// reports convert to millimetres and milliseconds.
+
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "linksight/tracker/model.hpp"
+
+namespace linksight::sim {
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// Distance from `p` to the polyline through `nodes` (segments between neighbours) [m].
+[[nodiscard]] double point_to_polyline(const Eigen::Vector3d& p, const Nodes& nodes);
+
+/// TrackDLO's bidirectional point-to-polyline distance (Xiang et al., RA-L 2023): the
+/// mean of (mean distance of a's nodes to b's polyline) and (mean distance of b's nodes
+/// to a's polyline) [m]. Zero only when each polyline's nodes lie on the other.
+[[nodiscard]] double bidirectional_polyline_distance(const Nodes& a, const Nodes& b);
+
+/// Topology check: the number of estimated nodes j whose nearest true node is not j.
+[[nodiscard]] int topology_swaps(const Nodes& estimate, const Nodes& truth);
+
+/// One tracker output against the truth of its frame (both in the camera frame).
+struct FrameScore {
+  std::vector<double> node_err;  ///< |estimate_j - truth_j| per node [m]; empty when lost
+  double mean_err = kNaN;        ///< [m]
+  double max_err = kNaN;         ///< [m]
+  double polyline = kNaN;        ///< bidirectional point-to-polyline distance [m]
+  int swaps = 0;                 ///< see topology_swaps
+  /// The tracker cannot know which end is the base: node order is matched to the truth
+  /// end to end, and this says the estimate was read back to front.
+  bool reversed = false;
+};
+
+/// Scores `estimate` against `truth` (same node count). An empty estimate (a lost frame)
+/// gives NaN errors. Throws std::invalid_argument when the counts differ otherwise.
+[[nodiscard]] FrameScore score_frame(const Nodes& estimate, const Nodes& truth);
+
+/// What an episode's scoring counts as an event, and as recovered.
+struct ScoreParams {
+  double recovered_below = 0.005;  ///< mean node error that counts as tracking [m]
+  double occlusion_from = 0.2;     ///< link occluded fraction that starts an occlusion event
+  /// Largest true node displacement between consecutive frames that starts a fast-motion
+  /// event [m]; about half the component pitch, where SOM association starts to break.
+  double fast_motion_from = 0.02;
+  void validate() const;  ///< throws std::invalid_argument naming the field
+};
+
+/// A run of frames [start, end) with occlusion or fast motion, and how long the tracker
+/// took afterwards to get back under ScoreParams::recovered_below.
+struct Event {
+  enum class Kind { occlusion, fast_motion };
+  Kind kind = Kind::occlusion;
+  int start = 0, end = 0;      ///< frames [start, end)
+  int frames_to_recover = -1;  ///< from `end` until the error is back under; -1: never
+};
+[[nodiscard]] const char* to_string(Event::Kind kind);
+
+/// Mean, median, 95th percentile (nearest rank) and maximum of a sample; NaN when empty.
+struct Stats {
+  double mean = kNaN, median = kNaN, p95 = kNaN, max = kNaN;
+  [[nodiscard]] static Stats of(std::vector<double> values);
+};
+
+struct EpisodeSummary {
+  int frames = 0;
+  int lost_frames = 0;
+  Stats node_err;             ///< of the per-frame mean node error over tracked frames [m]
+  double under_2mm = 0;       ///< fraction of all frames with mean error < 2 mm
+  double under_5mm = 0;       ///< fraction of all frames with mean error < 5 mm
+  double mean_sdf = kNaN;     ///< mean of the paper's SDF metric (Eq. 16) [m]
+  double mean_polyline = kNaN;  ///< mean bidirectional point-to-polyline distance [m]
+  int reinit_count = 0;       ///< frames where LSQ re-initialization fired
+  int swaps = 0;              ///< sum of topology swaps over frames
+  int swap_frames = 0;        ///< frames with at least one swap
+  Stats time;                 ///< tracker time per frame [s]
+  std::vector<Event> events;
+};
+
+/// Accumulates an episode frame by frame. Holds a few numbers per frame (not clouds or
+/// images), so a long episode costs 40 bytes a frame.
+class EpisodeScorer {
+ public:
+  explicit EpisodeScorer(const ScoreParams& params = {});  ///< validates params
+  /// One frame: its score, the tracker's SDF metric, re-initialization flag and time,
+  /// the link's occluded fraction and the largest true node displacement since the
+  /// previous frame [m].
+  void add(const FrameScore& score, double sdf, bool reinit, double time_s,
+           double occluded_fraction, double truth_motion);
+  [[nodiscard]] EpisodeSummary summary() const;
+
+ private:
+  struct Row {
+    double mean_err, sdf, polyline, time_s;
+    int swaps;
+    bool reinit, occluded, fast;
+  };
+  ScoreParams params_;
+  std::vector<Row> rows_;
+};
+
+}  // namespace linksight::sim

@@ -1,0 +1,125 @@
+#include "linksight/sim/episode.hpp"
+
+#include <chrono>
+#include <stdexcept>
+#include <string>
+
+#include "linksight/sim/extract.hpp"
+#include "linksight/sim/sensor.hpp"
+#include "linksight/sim/world.hpp"
+
+namespace linksight::sim {
+namespace {
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+void EpisodeOptions::validate() const {
+  if (frames < 0)
+    throw std::invalid_argument("episode frames = " + std::to_string(frames) + ": must be >= 0");
+  if (threads < 0)
+    throw std::invalid_argument("episode threads = " + std::to_string(threads) +
+                                ": must be >= 0");
+  for (std::size_t i = 0; i < modes.size(); ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      if (modes[i] == modes[j])
+        throw std::invalid_argument("episode modes: " + std::string(to_string(modes[i])) +
+                                    " given twice");
+  score.validate();
+}
+
+struct Episode::Impl {
+  Scene scene;
+  int frames = 0, done = 0;
+  std::vector<TrackerMode> modes;
+  std::unique_ptr<World> world;
+  std::unique_ptr<Sensor> sensor;
+  std::vector<Tracker> trackers;
+  std::vector<EpisodeScorer> scorers;
+  Eigen::Isometry3d X_CW;
+  DepthFrame image;
+  Cloud cloud;
+  EpisodeFrame out;
+  EpisodeTimes times;
+};
+
+Episode::Episode(const Scene& scene, const EpisodeOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  options.validate();
+  Impl& m = *impl_;
+  m.scene = scene;
+  m.frames = camera_frames(scene, options.frames);
+  m.modes = options.modes.empty() ? std::vector<TrackerMode>{scene.tracker.mode} : options.modes;
+  m.world = make_world(scene);
+  m.sensor = make_sensor(scene, options.threads);
+  for (const TrackerMode mode : m.modes) {
+    TrackerParams p = scene.tracker;
+    p.mode = mode;
+    m.trackers.emplace_back(p);
+    m.scorers.emplace_back(options.score);
+  }
+  m.X_CW = scene.camera.X_WC.inverse();
+}
+
+Episode::~Episode() = default;
+
+int Episode::frames() const { return impl_->frames; }
+int Episode::done() const { return impl_->done; }
+const std::vector<TrackerMode>& Episode::modes() const { return impl_->modes; }
+const EpisodeTimes& Episode::last_times() const { return impl_->times; }
+
+const EpisodeFrame& Episode::step() {
+  Impl& m = *impl_;
+  if (m.done >= m.frames) throw std::logic_error("episode: step() after the last frame");
+  const int f = m.done;
+  const auto frame = static_cast<std::uint64_t>(f);
+  auto t0 = std::chrono::steady_clock::now();
+  m.world->step_until(f / m.scene.camera.fps);
+  EpisodeFrame& o = m.out;
+  o.frame = f;
+  o.truth = m.world->truth();
+  o.t = o.truth.t;
+  Nodes previous = std::move(o.truth_C);
+  o.truth_C.resize(o.truth.nodes_W.size());
+  for (std::size_t j = 0; j < o.truth_C.size(); ++j) o.truth_C[j] = m.X_CW * o.truth.nodes_W[j];
+  o.truth_motion = 0;
+  if (f > 0 && previous.size() == o.truth_C.size())
+    for (std::size_t j = 0; j < o.truth_C.size(); ++j)
+      o.truth_motion = std::max(o.truth_motion, (o.truth_C[j] - previous[j]).norm());
+  m.times.physics = seconds_since(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  m.sensor->render(o.truth.X_WK, o.t, m.scene.seed, frame, m.image);
+  m.times.render = seconds_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  m.cloud = extract_cloud(m.image, m.scene.camera.intrinsics, m.scene.chain.geometry.count,
+                          m.scene.segmentation, m.scene.seed, frame);
+  m.times.extract = seconds_since(t0);
+  o.image = &m.image;
+  o.cloud = &m.cloud;
+
+  o.results.resize(m.trackers.size());
+  o.scores.resize(m.trackers.size());
+  double scoring = 0;
+  for (std::size_t k = 0; k < m.trackers.size(); ++k) {
+    o.results[k] = m.trackers[k].step(m.cloud);  // its own time is in FrameResult::time_s
+    t0 = std::chrono::steady_clock::now();
+    const FrameResult& r = o.results[k];
+    o.scores[k] = score_frame(r.lost ? Nodes{} : r.nodes, o.truth_C);
+    m.scorers[k].add(o.scores[k], r.sdf_error, r.reinit, r.time_s, m.image.link_occluded_fraction,
+                     o.truth_motion);
+    scoring += seconds_since(t0);
+  }
+  m.times.score = scoring;
+  ++m.done;
+  return o;
+}
+
+std::vector<EpisodeSummary> Episode::summaries() const {
+  std::vector<EpisodeSummary> s;
+  for (const EpisodeScorer& sc : impl_->scorers) s.push_back(sc.summary());
+  return s;
+}
+
+}  // namespace linksight::sim

@@ -1,0 +1,169 @@
+#include "linksight/sim/score.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace linksight::sim {
+
+double point_to_polyline(const Eigen::Vector3d& p, const Nodes& nodes) {
+  if (nodes.empty()) return kNaN;
+  double best = (p - nodes.front()).norm();
+  for (std::size_t j = 0; j + 1 < nodes.size(); ++j) {
+    const Eigen::Vector3d a = nodes[j], ab = nodes[j + 1] - a;
+    const double len2 = ab.squaredNorm();
+    const double s = len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    best = std::min(best, (p - (a + s * ab)).norm());
+  }
+  return best;
+}
+
+double bidirectional_polyline_distance(const Nodes& a, const Nodes& b) {
+  if (a.empty() || b.empty()) return kNaN;
+  double ab = 0, ba = 0;
+  for (const auto& p : a) ab += point_to_polyline(p, b);
+  for (const auto& p : b) ba += point_to_polyline(p, a);
+  return 0.5 * (ab / static_cast<double>(a.size()) + ba / static_cast<double>(b.size()));
+}
+
+int topology_swaps(const Nodes& estimate, const Nodes& truth) {
+  int swaps = 0;
+  for (std::size_t j = 0; j < estimate.size(); ++j) {
+    std::size_t nearest = 0;
+    for (std::size_t k = 1; k < truth.size(); ++k)
+      if ((estimate[j] - truth[k]).squaredNorm() < (estimate[j] - truth[nearest]).squaredNorm())
+        nearest = k;
+    swaps += nearest != j;
+  }
+  return swaps;
+}
+
+FrameScore score_frame(const Nodes& estimate, const Nodes& truth) {
+  FrameScore s;
+  if (estimate.empty()) return s;
+  if (estimate.size() != truth.size())
+    throw std::invalid_argument("score: " + std::to_string(estimate.size()) +
+                                " estimated nodes for " + std::to_string(truth.size()) +
+                                " true nodes");
+  auto mean_err = [&](bool reversed) {
+    double sum = 0;
+    for (std::size_t j = 0; j < truth.size(); ++j)
+      sum += (estimate[reversed ? truth.size() - 1 - j : j] - truth[j]).norm();
+    return sum;
+  };
+  s.reversed = mean_err(true) < mean_err(false);
+  Nodes e = estimate;
+  if (s.reversed) std::reverse(e.begin(), e.end());
+  s.node_err.resize(e.size());
+  for (std::size_t j = 0; j < e.size(); ++j) s.node_err[j] = (e[j] - truth[j]).norm();
+  s.mean_err = std::accumulate(s.node_err.begin(), s.node_err.end(), 0.0) /
+               static_cast<double>(e.size());
+  s.max_err = *std::max_element(s.node_err.begin(), s.node_err.end());
+  s.polyline = bidirectional_polyline_distance(e, truth);
+  s.swaps = topology_swaps(e, truth);
+  return s;
+}
+
+void ScoreParams::validate() const {
+  auto check = [](bool ok, const char* name, double v, const char* rule) {
+    if (!ok)
+      throw std::invalid_argument(std::string("score ") + name + " = " + std::to_string(v) +
+                                  ": " + rule);
+  };
+  check(recovered_below > 0 && std::isfinite(recovered_below), "recovered_below",
+        recovered_below, "must be > 0 m");
+  check(occlusion_from > 0 && occlusion_from <= 1, "occlusion_from", occlusion_from,
+        "must be in (0, 1]");
+  check(fast_motion_from > 0 && std::isfinite(fast_motion_from), "fast_motion_from",
+        fast_motion_from, "must be > 0 m");
+}
+
+const char* to_string(Event::Kind kind) {
+  return kind == Event::Kind::occlusion ? "occlusion" : "fast_motion";
+}
+
+Stats Stats::of(std::vector<double> v) {
+  Stats s;
+  std::erase_if(v, [](double x) { return !std::isfinite(x); });
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  s.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(n);
+  s.median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  // Nearest rank: the smallest value with at least 95% of the sample at or below it.
+  const auto rank = static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(n)));
+  s.p95 = v[std::max<std::size_t>(rank, 1) - 1];
+  s.max = v.back();
+  return s;
+}
+
+EpisodeScorer::EpisodeScorer(const ScoreParams& params) : params_(params) { params.validate(); }
+
+void EpisodeScorer::add(const FrameScore& score, double sdf, bool reinit, double time_s,
+                        double occluded_fraction, double truth_motion) {
+  rows_.push_back({score.mean_err, sdf, score.polyline, time_s, score.swaps, reinit,
+                   occluded_fraction >= params_.occlusion_from,
+                   truth_motion >= params_.fast_motion_from});
+}
+
+EpisodeSummary EpisodeScorer::summary() const {
+  EpisodeSummary s;
+  s.frames = static_cast<int>(rows_.size());
+  std::vector<double> err, time;
+  double sdf = 0, poly = 0;
+  int n_sdf = 0, n_poly = 0;
+  for (const Row& r : rows_) {
+    time.push_back(r.time_s);
+    s.reinit_count += r.reinit;
+    if (!std::isfinite(r.mean_err)) {
+      ++s.lost_frames;
+      continue;
+    }
+    err.push_back(r.mean_err);
+    s.under_2mm += r.mean_err < 0.002;
+    s.under_5mm += r.mean_err < 0.005;
+    s.swaps += r.swaps;
+    s.swap_frames += r.swaps > 0;
+    if (std::isfinite(r.sdf)) sdf += r.sdf, ++n_sdf;
+    if (std::isfinite(r.polyline)) poly += r.polyline, ++n_poly;
+  }
+  if (s.frames > 0) {
+    s.under_2mm /= s.frames;
+    s.under_5mm /= s.frames;
+  }
+  if (n_sdf) s.mean_sdf = sdf / n_sdf;
+  if (n_poly) s.mean_polyline = poly / n_poly;
+  s.node_err = Stats::of(err);
+  s.time = Stats::of(time);
+  // Events: maximal runs of flagged frames, each kind on its own.
+  for (const Event::Kind kind : {Event::Kind::occlusion, Event::Kind::fast_motion}) {
+    auto flagged = [&](int f) {
+      return kind == Event::Kind::occlusion ? rows_[f].occluded : rows_[f].fast;
+    };
+    for (int f = 0; f < s.frames;) {
+      if (!flagged(f)) {
+        ++f;
+        continue;
+      }
+      Event e;
+      e.kind = kind;
+      e.start = f;
+      while (f < s.frames && flagged(f)) ++f;
+      e.end = f;
+      for (int g = e.end; g < s.frames; ++g) {
+        if (rows_[g].mean_err < params_.recovered_below) {  // NaN (lost) is not recovered
+          e.frames_to_recover = g - e.end;
+          break;
+        }
+      }
+      s.events.push_back(e);
+    }
+  }
+  std::stable_sort(s.events.begin(), s.events.end(),
+            [](const Event& a, const Event& b) { return a.start < b.start; });
+  return s;
+}
+
+}  // namespace linksight::sim
