@@ -18,5 +18,6 @@ Runner add_devices(CLI::App& app);
 Runner add_simulate(CLI::App& app);
 Runner add_meshes(CLI::App& app);
 Runner add_render(CLI::App& app);
+Runner add_run(CLI::App& app);
 
 }  // namespace linksight::cli

@@ -18,6 +18,10 @@ int main(int argc, char** argv) {
     Runner (*add)(CLI::App&);
   };
   const Subcommand subcommands[] = {
+      {"run",
+       "The main job: simulate a scene, render it, run every compared tracker mode on the "
+       "same frames and score them (frames.csv, nodes.csv, summary.json, figures).",
+       add_run},
       {"track", "Track the link through a sequence of clouds (PLY or 16-bit depth PNG).",
        add_track},
       {"synth", "Write a synthetic cloud sequence of the link with its true nodes.", add_synth},

@@ -20,6 +20,7 @@ packages=(
   libyaml-cpp-dev           # scene files
   libassimp-dev             # sim/: mesh files (load_mesh)
   libembree-dev             # sim/: ray casting for the simulated depth camera
+  python3-matplotlib        # linksight run: figures (tools/plot_run.py)
   zlib1g-dev                # assimp's CMake package links libz.so, which --no-install-recommends leaves out
 )
 
