@@ -1,0 +1,192 @@
+// Episodes of every shipped scene, short, with sanity bands; `--set` overrides and the
+// tracker keys of scene files.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "linksight/io/error.hpp"
+#include "linksight/sim/episode.hpp"
+#include "test_support.hpp"
+
+namespace linksight::sim {
+namespace {
+
+const std::filesystem::path kScenes = LINKSIGHT_SCENE_DIR;
+const char* const kShipped[] = {"default",        "static",  "bend_push",  "base_sweep",
+                                "occluder_pass", "self_occlusion", "clutter", "fast_motion"};
+
+// The link is tracked to within a few centimetres while nothing disturbs it. The SOM
+// puts nodes at the mean of the visible front surface, 2/3 of a ball radius (10 mm)
+// in front of the true centre, so the band is not tighter than that.
+constexpr double kQuietErrorBand = 0.025;  // [m]
+
+TEST(Episode, EveryShippedSceneLoadsAndRunsItsFirstFrames) {
+  for (const char* name : kShipped) {
+    SCOPED_TRACE(name);
+    const Scene scene = load_scene(kScenes / (std::string(name) + ".yaml"));
+    EpisodeOptions o;
+    o.frames = 3;
+    o.modes = {TrackerMode::paper, TrackerMode::accelerated_som};
+    Episode e(scene, o);
+    ASSERT_EQ(e.frames(), 3);
+    for (int f = 0; f < 3; ++f) {
+      const EpisodeFrame& fr = e.step();
+      EXPECT_EQ(fr.frame, f);
+      EXPECT_GT(fr.cloud->size(), 500u);
+      ASSERT_EQ(fr.scores.size(), 2u);
+      EXPECT_FALSE(fr.results[0].lost);
+      EXPECT_TRUE(std::isfinite(fr.scores[0].mean_err));
+    }
+    const auto s = e.summaries();
+    ASSERT_EQ(s.size(), 2u);
+    EXPECT_EQ(s[0].frames, 3);
+    if (std::string(name) != "clutter") {  // depth segmentation keeps mugs and clutter
+      EXPECT_LT(s[0].node_err.max, kQuietErrorBand);
+    }
+  }
+}
+
+TEST(Episode, StaticPaperErrorIsStableOverTime) {
+  const Scene scene = load_scene(kScenes / "static.yaml");
+  EpisodeOptions o;
+  o.frames = 30;
+  Episode e(scene, o);
+  double lo = 1, hi = 0;
+  while (e.done() < e.frames()) {
+    const double err = e.step().scores[0].mean_err;
+    lo = std::min(lo, err);
+    hi = std::max(hi, err);
+  }
+  EXPECT_LT(hi, kQuietErrorBand);
+  EXPECT_LT(hi - lo, 0.002) << "a resting link at nominal noise: the error must not drift";
+  EXPECT_EQ(e.summaries()[0].reinit_count, 0);
+}
+
+// The paper's claim (Sec. IV.C): re-initialization recovers from motion that breaks
+// association; the accelerated SOM, without it, does not. The whole scene (5 s, three
+// jumps).
+TEST(Episode, FastMotionBaselineNeverBeatsPaperMode) {
+  const Scene scene = load_scene(kScenes / "fast_motion.yaml");
+  EpisodeOptions o;
+  o.modes = {TrackerMode::paper, TrackerMode::accelerated_som};
+  Episode e(scene, o);
+  bool jumped = false;
+  while (e.done() < e.frames()) {
+    const EpisodeFrame& f = e.step();
+    jumped = jumped || f.truth_motion > o.score.fast_motion_from;
+    EXPECT_LE(f.scores[0].mean_err, f.scores[1].mean_err + 1e-4) << "frame " << f.frame;
+  }
+  EXPECT_TRUE(jumped);
+  const auto s = e.summaries();
+  ASSERT_FALSE(s[0].events.empty());
+  EXPECT_EQ(s[0].events[0].kind, Event::Kind::fast_motion);
+  EXPECT_GE(s[0].reinit_count, 1);
+  EXPECT_LT(s[0].node_err.max, 0.05);
+  EXPECT_GT(s[1].node_err.max, 0.05) << "the jump was meant to break the baseline";
+}
+
+TEST(Episode, SameScoresWhenRunTwice) {
+  const Scene scene = load_scene(kScenes / "occluder_pass.yaml");
+  EpisodeOptions o;
+  o.frames = 4;
+  auto errors = [&](int threads) {
+    o.threads = threads;
+    Episode e(scene, o);
+    std::vector<double> v;
+    while (e.done() < e.frames()) v.push_back(e.step().scores[0].mean_err);
+    return v;
+  };
+  EXPECT_EQ(errors(1), errors(2));
+}
+
+TEST(Episode, BadOptionsAreNamed) {
+  const Scene scene = load_scene(kScenes / "static.yaml");
+  EpisodeOptions o;
+  o.modes = {TrackerMode::paper, TrackerMode::paper};
+  try {
+    Episode e(scene, o);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("paper given twice"), std::string::npos) << e.what();
+  }
+  o = {};
+  o.frames = -1;
+  EXPECT_THROW(Episode(scene, o), std::invalid_argument);
+}
+
+class Overrides : public ::testing::Test {
+ protected:
+  std::filesystem::path dir =
+      test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  std::string error_of(const std::filesystem::path& scene, std::vector<std::string> set) {
+    try {
+      (void)load_scene(scene, set);
+    } catch (const io::InputError& e) {
+      return e.what();
+    }
+    return "no error";
+  }
+};
+
+TEST_F(Overrides, SetReachesScalarsNestedKeysListsAndVectors) {
+  const Scene s = load_scene(kScenes / "occluder_pass.yaml",
+                             {"camera.fps=60", "noise.axial.a_m=0.001", "seed=99",
+                              "occluders[1].reflectance=0.25",
+                              "occluders[1].half_extents_m=[0.1, 0.01, 0.05]",
+                              "tracker.mode=accelerated-som", "tracker.iterations=6",
+                              "world.gravity=false"});
+  EXPECT_EQ(s.camera.fps, 60);
+  EXPECT_EQ(s.noise.axial.a, 0.001);
+  EXPECT_EQ(s.seed, 99u);
+  EXPECT_EQ(s.occluders[1].reflectance, 0.25);
+  EXPECT_EQ(s.occluders[1].shape.half_extents, Eigen::Vector3d(0.1, 0.01, 0.05));
+  EXPECT_EQ(s.tracker.mode, TrackerMode::accelerated_som);
+  EXPECT_EQ(s.tracker.iterations, 6);
+  EXPECT_FALSE(s.world.gravity);
+  // The file alone is unchanged.
+  const Scene plain = load_scene(kScenes / "occluder_pass.yaml");
+  EXPECT_EQ(plain.camera.fps, 30);
+  EXPECT_EQ(plain.tracker.mode, TrackerMode::paper);
+  // A key the file does not have is created.
+  EXPECT_EQ(load_scene(kScenes / "static.yaml", {"segmentation.leakage=0.3"}).segmentation.leakage,
+            0.3);
+}
+
+TEST_F(Overrides, BadOverridesNameTheSetAndTheKey) {
+  const auto scene = kScenes / "static.yaml";
+  auto has = [](const std::string& what, const std::string& needle) {
+    return what.find(needle) != std::string::npos;
+  };
+  std::string e = error_of(scene, {"camera.fps=fast"});
+  EXPECT_TRUE(has(e, "--set camera.fps=fast: camera.fps: expected a number")) << e;
+  e = error_of(scene, {"camera.fsp=30"});
+  EXPECT_TRUE(has(e, "--set camera.fsp=30: camera.fsp: unknown key")) << e;
+  e = error_of(scene, {"tracker.mode=fastest"});
+  EXPECT_TRUE(has(e, "tracker.mode: 'fastest' is not one of")) << e;
+  e = error_of(scene, {"occluders[0].reflectance=1"});
+  EXPECT_TRUE(has(e, "no element 0")) << e;
+  e = error_of(scene, {"camera.fps"});
+  EXPECT_TRUE(has(e, "expected key.path=value")) << e;
+  e = error_of(scene, {"camera.fps=[1"});
+  EXPECT_TRUE(has(e, "not valid YAML")) << e;
+  e = error_of(scene, {"tracker.iterations=0"});
+  EXPECT_TRUE(has(e, "--set tracker.iterations=0: tracker.iterations")) << e;
+  EXPECT_TRUE(has(e, "out of range")) << e;
+}
+
+TEST_F(Overrides, TrackerKeysInAFileNameTheirLine) {
+  const auto p = dir / "scene.yaml";
+  std::ofstream(p) << "duration_s: 1\ntracker:\n  mode: paper\n  backend: cuda\n";
+  const std::string e = error_of(p, {});
+  EXPECT_NE(e.find(":4: tracker.backend: 'cuda' is not one of"), std::string::npos) << e;
+  std::ofstream(p) << "tracker:\n  iterations: 7\n  init: paper\n  som_init: random-sample\n";
+  const Scene s = load_scene(p);
+  EXPECT_EQ(s.tracker.iterations, 7);
+  EXPECT_EQ(s.tracker.init.method, InitMethod::paper);
+  EXPECT_EQ(s.tracker.som_init, SomInit::random_sample);
+  EXPECT_EQ(s.tracker.nodes, s.chain.geometry.count + 1);
+}
+
+}  // namespace
+}  // namespace linksight::sim
