@@ -6,6 +6,8 @@
 #include <functional>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/ply.hpp"
 #include "linksight/sim/recording.hpp"
@@ -333,6 +335,110 @@ TEST_F(Cli, RenderBadInputLeavesNothing) {
   EXPECT_EQ(f.code, 0) << f.err;
   EXPECT_FALSE(fs::exists(out / "keep.txt"));
   EXPECT_TRUE(fs::exists(out / "depth" / "000000.png"));
+}
+
+// linksight run: the main job's outputs are complete and parse.
+TEST_F(Cli, RunWritesScoresSummaryAndFigures) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const CliRun r = run("run " + scene + " --frames 4 --compare paper,accelerated-som --overlays 2 "
+                       "--set seed=5 --out " + out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("accelerated-som"), std::string::npos) << r.out;  // the summary table
+  auto lines = [](const fs::path& p) {
+    std::ifstream in(p);
+    std::vector<std::string> v;
+    for (std::string l; std::getline(in, l);) v.push_back(l);
+    return v;
+  };
+  const auto frames = lines(out / "frames.csv");
+  ASSERT_EQ(frames.size(), 1u + 4 * 2);
+  EXPECT_EQ(frames[0].rfind("mode,frame,t_s,n_points,occluded_fraction", 0), 0u);
+  EXPECT_EQ(frames[1].rfind("paper,0,", 0), 0u) << frames[1];
+  EXPECT_EQ(frames[2].rfind("accelerated-som,0,", 0), 0u) << frames[2];
+  EXPECT_EQ(lines(out / "nodes.csv").size(), 1u + 4 * 2 * 12);
+  std::ifstream js(out / "summary.json");
+  const nlohmann::json j = nlohmann::json::parse(js);
+  EXPECT_EQ(j["frames"], 4);
+  EXPECT_EQ(j["seed"], 5);
+  EXPECT_FALSE(j["interrupted"].get<bool>());
+  for (const char* mode : {"paper", "accelerated-som"}) {
+    const auto& m = j["modes"][mode];
+    EXPECT_EQ(m["frames"], 4) << mode;
+    for (const char* k : {"mean", "median", "p95", "max"}) {
+      ASSERT_TRUE(m["node_err_mm"][k].is_number()) << mode << " " << k;
+      EXPECT_GT(m["node_err_mm"][k].get<double>(), 0.0);
+      EXPECT_LT(m["node_err_mm"][k].get<double>(), 30.0);
+    }
+    EXPECT_TRUE(m["time_ms"]["mean"].is_number());
+    EXPECT_TRUE(m["reinit_count"].is_number_integer());
+    EXPECT_TRUE(m["swaps"].is_number_integer());
+  }
+  for (const char* fig : {"node_error.png", "tracker_time.png", "overlay_000001.png",
+                          "overlay_000003.png"}) {
+    EXPECT_GT(fs::exists(out / "figures" / fig) ? fs::file_size(out / "figures" / fig) : 0u,
+              10000u)
+        << fig << " (needs python3-matplotlib, which tools/setup.sh installs)";
+  }
+  EXPECT_TRUE(fs::exists(out / "overlays" / "depth_000001.png"));
+}
+
+TEST_F(Cli, RunBadInputLeavesNothing) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  auto bad = [&](const std::string& args, const std::string& names) {
+    const CliRun r = run("run " + args + " --no-figures --out " + out.string(), dir);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out)) << args;
+    for (const auto& e : fs::directory_iterator(dir))
+      EXPECT_EQ(e.path().filename().string().find("result.partial"), std::string::npos);
+  };
+  bad((dir / "none.yaml").string(), "none.yaml: cannot open scene");
+  bad(scene + " --set camera.fps=fast", "--set camera.fps=fast: camera.fps: expected a number");
+  bad(scene + " --set chain.bogus=1", "chain.bogus: unknown key");
+  bad(scene + " --compare paper,fastest", "--compare");
+  std::ofstream(dir / "hand.yaml") << "occluders:\n  - shape: mesh\n    mesh: gone.obj\n";
+  bad((dir / "hand.yaml").string(), "hand.yaml:3: occluders[0].mesh: ");
+  // An output directory that cannot be created.
+  std::ofstream(dir / "file") << "x";
+  const CliRun nd = run("run " + scene + " --frames 1 --no-figures --out " +
+                        (dir / "file" / "sub").string(), dir);
+  EXPECT_EQ(nd.code, 2) << nd.err;
+  EXPECT_NE(nd.err.find("file"), std::string::npos) << nd.err;
+  // An existing output directory is refused unless --force, and kept as it was.
+  fs::create_directories(out);
+  std::ofstream(out / "keep.txt") << "mine";
+  const CliRun r = run("run " + scene + " --frames 1 --no-figures --out " + out.string(), dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("output directory exists (use --force"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(out / "keep.txt"));
+  const CliRun f =
+      run("run --quiet --force --no-figures " + scene + " --frames 1 --out " + out.string(), dir);
+  EXPECT_EQ(f.code, 0) << f.err;
+  EXPECT_FALSE(fs::exists(out / "keep.txt"));
+  EXPECT_TRUE(fs::exists(out / "summary.json"));
+}
+
+// Ctrl-C: the frames done so far are written whole, the summary says so, exit 130.
+TEST_F(Cli, RunInterruptedKeepsCompletedFiles) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml";
+  // 60 s of scene (1801 frames) cannot finish in the 5 s before the interrupt.
+  const std::string cmd = "timeout --preserve-status -s INT 5 " + std::string(LINKSIGHT_EXE) +
+                          " run " + scene + " --set duration_s=60 --quiet --no-figures --out " +
+                          out.string() + " >/dev/null 2>&1";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  std::ifstream js(out / "summary.json");
+  const nlohmann::json j = nlohmann::json::parse(js);
+  EXPECT_TRUE(j["interrupted"].get<bool>());
+  const int done = j["frames"];
+  EXPECT_GT(done, 0);
+  EXPECT_LT(done, j["frames_planned"].get<int>());
+  std::ifstream in(out / "frames.csv");
+  int rows = -1;
+  for (std::string l; std::getline(in, l);) ++rows;
+  EXPECT_EQ(rows, done);  // one mode: a row per completed frame, none half-written
 }
 
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
