@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "format.hpp"
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/error.hpp"
@@ -60,19 +61,12 @@ std::vector<TrackerMode> parse_modes(const std::string& list) {
   return modes;
 }
 
-// Millimetres for reports; NaN and Inf become JSON null.
-nlohmann::json mm(double metres) {
-  return std::isfinite(metres) ? nlohmann::json(metres * 1e3) : nlohmann::json(nullptr);
-}
+// Statistics in report units (`unit` per SI unit: 1e3 for mm or ms).
 nlohmann::json stats_json(const sim::Stats& s, double unit) {
-  auto v = [&](double x) { return std::isfinite(x) ? nlohmann::json(x * unit) : nlohmann::json(nullptr); };
-  return {{"mean", v(s.mean)}, {"median", v(s.median)}, {"p95", v(s.p95)}, {"max", v(s.max)}};
-}
-std::string fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "nan";
-  std::ostringstream o;
-  o << std::fixed << std::setprecision(digits) << v;
-  return o.str();
+  return {{"mean", json_number(s.mean * unit)},
+          {"median", json_number(s.median * unit)},
+          {"p95", json_number(s.p95 * unit)},
+          {"max", json_number(s.max * unit)}};
 }
 
 // The plotting script: $LINKSIGHT_PLOT_SCRIPT, else the one in the source tree.
@@ -87,8 +81,8 @@ void progress(int done, int total, double elapsed_s) {
   const int filled = total > 0 ? done * kWidth / total : kWidth;
   const double rate = elapsed_s > 0 ? done / elapsed_s : 0;
   std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] "
-            << done << "/" << total << " frames, " << fixed(rate, 1) << " frames/s";
-  if (rate > 0) std::cerr << ", " << fixed((total - done) / rate, 0) << " s left ";
+            << done << "/" << total << " frames, " << fmt(rate, 1) << " frames/s";
+  if (rate > 0) std::cerr << ", " << fmt((total - done) / rate, 0) << " s left ";
   std::cerr << std::flush;
 }
 
@@ -147,10 +141,10 @@ int run_run(const RunOptions& o) {
       const std::string mode(to_string(modes[k]));
       frames_csv << mode << ',' << f.frame << ',' << f.t << ',' << f.cloud->size() << ','
                  << f.image->link_occluded_fraction << ',' << f.truth_motion * 1e3 << ','
-                 << fixed(s.mean_err * 1e3, 4) << ',' << fixed(s.max_err * 1e3, 4) << ','
-                 << fixed(r.sdf_error * 1e3, 4) << ',' << fixed(s.polyline * 1e3, 4) << ','
+                 << fmt(s.mean_err * 1e3, 4) << ',' << fmt(s.max_err * 1e3, 4) << ','
+                 << fmt(r.sdf_error * 1e3, 4) << ',' << fmt(s.polyline * 1e3, 4) << ','
                  << s.swaps << ',' << s.reversed << ',' << r.reinit << ','
-                 << to_string(r.init_reason) << ',' << r.lost << ',' << fixed(r.time_s * 1e3, 4)
+                 << to_string(r.init_reason) << ',' << r.lost << ',' << fmt(r.time_s * 1e3, 4)
                  << '\n';
       if (!r.lost) {
         for (std::size_t j = 0; j < f.truth_C.size(); ++j) {
@@ -158,7 +152,7 @@ int run_run(const RunOptions& o) {
           const Eigen::Vector3d& t = f.truth_C[j];
           nodes_csv << mode << ',' << f.frame << ',' << j << ',' << e.x() << ',' << e.y() << ','
                     << e.z() << ',' << t.x() << ',' << t.y() << ',' << t.z() << ','
-                    << fixed(s.node_err[j] * 1e3, 4) << '\n';
+                    << fmt(s.node_err[j] * 1e3, 4) << '\n';
         }
       }
     }
@@ -228,8 +222,8 @@ int run_run(const RunOptions& o) {
         {"node_err_mm", stats_json(s.node_err, 1e3)},
         {"pct_frames_under_2mm", 100.0 * s.under_2mm},
         {"pct_frames_under_5mm", 100.0 * s.under_5mm},
-        {"sdf_err_mm_mean", mm(s.mean_sdf)},
-        {"polyline_err_mm_mean", mm(s.mean_polyline)},
+        {"sdf_err_mm_mean", json_number(s.mean_sdf * 1e3)},
+        {"polyline_err_mm_mean", json_number(s.mean_polyline * 1e3)},
         {"reinit_count", s.reinit_count},
         {"swaps", s.swaps},
         {"swap_frames", s.swap_frames},
@@ -263,7 +257,7 @@ int run_run(const RunOptions& o) {
   if (!figures_note.empty()) std::cerr << "linksight: warning: " << figures_note << "\n";
   if (!o.quiet) {
     std::cout << (done < n ? "interrupted after " : "ran ") << done << " frames of " << o.scene
-              << " (" << fixed(done / std::max(wall, 1e-9), 1) << " frames/s)\n";
+              << " (" << fmt(done / std::max(wall, 1e-9), 1) << " frames/s)\n";
     std::cout << std::left << std::setw(17) << "mode" << std::right << std::setw(10)
               << "mean_mm" << std::setw(10) << "p95_mm" << std::setw(10) << "max_mm"
               << std::setw(9) << "<5mm_%" << std::setw(8) << "reinit" << std::setw(7) << "swaps"
@@ -271,11 +265,11 @@ int run_run(const RunOptions& o) {
     for (std::size_t k = 0; k < modes.size(); ++k) {
       const sim::EpisodeSummary& s = summaries[k];
       std::cout << std::left << std::setw(17) << to_string(modes[k]) << std::right
-                << std::setw(10) << fixed(s.node_err.mean * 1e3, 2) << std::setw(10)
-                << fixed(s.node_err.p95 * 1e3, 2) << std::setw(10)
-                << fixed(s.node_err.max * 1e3, 2) << std::setw(9)
-                << fixed(100 * s.under_5mm, 1) << std::setw(8) << s.reinit_count
-                << std::setw(7) << s.swaps << std::setw(10) << fixed(s.time.mean * 1e3, 2)
+                << std::setw(10) << fmt(s.node_err.mean * 1e3, 2) << std::setw(10)
+                << fmt(s.node_err.p95 * 1e3, 2) << std::setw(10)
+                << fmt(s.node_err.max * 1e3, 2) << std::setw(9)
+                << fmt(100 * s.under_5mm, 1) << std::setw(8) << s.reinit_count
+                << std::setw(7) << s.swaps << std::setw(10) << fmt(s.time.mean * 1e3, 2)
                 << "\n";
     }
     std::cout << "wrote " << out.string() << "/{frames.csv,nodes.csv,summary.json}"

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "commands.hpp"
+#include "format.hpp"
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
@@ -44,13 +45,6 @@ struct TrackOptions {
   std::string out = "out/track";
   bool quiet = false;
 };
-
-std::string fmt(double v, int precision) {
-  if (!std::isfinite(v)) return "nan";
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(precision) << v;
-  return s.str();
-}
 
 int run_track(const TrackOptions& o) {
   TrackerParams p;

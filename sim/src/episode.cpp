@@ -38,6 +38,7 @@ struct Episode::Impl {
   std::vector<Tracker> trackers;
   std::vector<EpisodeScorer> scorers;
   Eigen::Isometry3d X_CW;
+  Nodes previous_C;  // the last frame's true nodes, camera frame
   DepthFrame image;
   Cloud cloud;
   EpisodeFrame out;
@@ -80,13 +81,13 @@ const EpisodeFrame& Episode::step() {
   o.frame = f;
   o.truth = m.world->truth();
   o.t = o.truth.t;
-  Nodes previous = std::move(o.truth_C);
+  std::swap(m.previous_C, o.truth_C);  // last frame's truth; both buffers are reused
   o.truth_C.resize(o.truth.nodes_W.size());
   for (std::size_t j = 0; j < o.truth_C.size(); ++j) o.truth_C[j] = m.X_CW * o.truth.nodes_W[j];
   o.truth_motion = 0;
-  if (f > 0 && previous.size() == o.truth_C.size())
+  if (f > 0)
     for (std::size_t j = 0; j < o.truth_C.size(); ++j)
-      o.truth_motion = std::max(o.truth_motion, (o.truth_C[j] - previous[j]).norm());
+      o.truth_motion = std::max(o.truth_motion, (o.truth_C[j] - m.previous_C[j]).norm());
   m.times.physics = seconds_since(t0);
 
   t0 = std::chrono::steady_clock::now();

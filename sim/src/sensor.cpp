@@ -251,7 +251,6 @@ struct Sensor::Impl {
   // Per-pixel scratch, kept between frames.
   std::vector<float> cos_c, cos_p;
   std::vector<std::uint8_t> lit, hole, label_no_occluders;
-  std::vector<std::size_t> hole_px;  // this frame's hole pixels
   Eigen::AlignedBox3d component_box;  // a component's bounds in its own frame K
   SensorTimes times;
 
@@ -432,11 +431,11 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   out.depth.height = H;
   out.depth.data.assign(n, 0);
   out.depth_m.assign(n, 0.0F);
-  out.depth_clean_m.assign(n, 0);
+  out.depth_clean_m.assign(n, 0.0F);
   out.label.assign(n, kLabelNothing);
   out.incidence.assign(n, std::numeric_limits<float>::quiet_NaN());
-  m.cos_c.assign(n, 0);
-  m.cos_p.assign(n, 0);
+  m.cos_c.assign(n, 0.0F);
+  m.cos_p.assign(n, 0.0F);
   m.lit.assign(n, 1);
   const std::uint64_t frame_seed = derive_seed(derive_seed(seed, "sensor"), frame);
   const int threads = m.p.threads > 0 ? m.p.threads : omp_get_max_threads();
@@ -448,13 +447,13 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   const bool shadows = noise.shadow.enabled;
   const int per_row = (W + kPacket - 1) / kPacket;
   const long packets = static_cast<long>(per_row) * H;
-  // Ray direction of pixel i in W, scaled so that its camera-frame z is 1: the hit
-  // distance t is then the depth.
   // Rays in float, as Embree takes them.
   const Eigen::Matrix3f R_WC_f = R_WC.cast<float>();
-  const Eigen::Vector3f o_Wf = o_W.cast<float>();
+  const Eigen::Vector3f o_Wf = o_W.cast<float>(), z_f = Eigen::Vector3f::UnitZ();
   const bool pinhole = K.model == io::Distortion::none;
   const double inv_fx = 1.0 / K.fx, inv_fy = 1.0 / K.fy;
+  // Ray direction of pixel i in W, scaled so that its camera-frame z is 1: the hit
+  // distance t is then the depth.
   auto direction = [&](int u, int v, std::size_t pix) {
     double du = 0, dv = 0;
     if (jitter) {
@@ -473,7 +472,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   // Inactive shadow lanes still hold a finite ray: Embree's packet path reads them too.
   alignas(64) RTCRay16 shadow_idle;
   for (int i = 0; i < kPacket; ++i)
-    set_lane(shadow_idle, i, o_Wf, Eigen::Vector3f(Eigen::Vector3f::UnitZ()), 0.0F, 0xFFFFFFFFu);
+    set_lane(shadow_idle, i, o_Wf, z_f, 0.0F, 0xFFFFFFFFu);
 
   // Culling: pixels outside these rectangles cannot see anything (scene_rect) or cannot
   // see the chain (chain_rect).
@@ -487,7 +486,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
                            margin_px);
     Eigen::AlignedBox3d chain_W;
     for (const Eigen::Isometry3d& X : X_WK)
-      for (int c = 0; c < 8; ++c) chain_W.extend(X * m.component_box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c)));
+      for (int c = 0; c < 8; ++c)
+        chain_W.extend(X * m.component_box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c)));
     chain_rect = reachable(chain_W.min(), chain_W.max(), m.p.camera.X_WC, K, margin_px);
   }
 
@@ -508,8 +508,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     for (int i = 0; i < kPacket; ++i) {
       const int u = u0 + i;
       valid[i] = u < W ? -1 : 0;
-      dirs[i] = u < W ? direction(u, v, static_cast<std::size_t>(v) * W + u)
-                      : Eigen::Vector3f::UnitZ();
+      dirs[i] = u < W ? direction(u, v, static_cast<std::size_t>(v) * W + u) : z_f;
       set_lane(rh, i, o_Wf, dirs[i], 0xFFFFFFFFu);  // Debian's Embree filters by mask
     }
     rtcIntersect16(valid, m.top, &ctx, &rh);
@@ -517,9 +516,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     alignas(64) int svalid[kPacket] = {};
     bool any_shadow = false;
     for (int i = 0; i < kPacket; ++i) {
-      if (!valid[i]) continue;
+      if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
       const std::size_t pix = static_cast<std::size_t>(v) * W + u0 + i;
-      if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
       const unsigned inst = rh.hit.instID[0][i];
       const double tz = rh.ray.tfar[i];
       // Embree reports instance hits' normals in the instance's own frame.
@@ -538,7 +536,6 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       m.cos_c[pix] = static_cast<float>(cos_c);
       out.incidence[pix] = static_cast<float>(acos_unit(cos_c));
       m.cos_p[pix] = static_cast<float>(nrm.dot(to_p) / to_p.norm());
-      m.lit[pix] = 1;
       if (shadows && m.cos_p[pix] > 0) {
         const Eigen::Vector3d org = p_W + 1e-5 * nrm;  // off the surface it starts on
         const Eigen::Vector3d sd = P_W - org;
@@ -569,7 +566,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   out.visible_px_unoccluded.assign(m.count, 0);
   out.occluded_fraction.assign(m.count, 0.0);
   if (!m.occluders.empty()) {
-    m.label_no_occluders.resize(n);  // written at every occluder pixel, read only there
+    m.label_no_occluders.assign(n, kLabelNothing);
 #pragma omp parallel for schedule(dynamic, 40) num_threads(threads)
     for (long pk = 0; pk < packets; ++pk) {
       const int v = static_cast<int>(pk / per_row);
@@ -584,12 +581,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
         const std::uint8_t l = u < W ? out.label[pix] : kLabelNothing;
         if (l >= kLabelOccluder0 && l < kLabelBackground) {
           // Outside chain_rect the chain cannot be behind the occluder.
-          if (chain_rect.contains(u, v)) {
-            valid[i] = -1;
-            any = true;
-          } else {
-            m.label_no_occluders[pix] = kLabelNothing;
-          }
+          valid[i] = chain_rect.contains(u, v) ? -1 : 0;
+          any = any || valid[i];
         }
       }
       if (!any) continue;
@@ -597,7 +590,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
         const int u = u0 + i;
         // Inactive lanes get a finite ray too (see above).
         const Eigen::Vector3f d = valid[i] ? direction(u, v, static_cast<std::size_t>(v) * W + u)
-                                           : Eigen::Vector3f::UnitZ();  // the same jittered ray
+                                           : z_f;  // the same jittered ray
         set_lane(rh, i, o_Wf, d, kMaskScene);
       }
       RTCIntersectContext ctx;
@@ -605,10 +598,9 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
       rtcIntersect16(valid, m.top, &ctx, &rh);
       for (int i = 0; i < kPacket; ++i) {
-        if (valid[i])
+        if (valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID)
           m.label_no_occluders[static_cast<std::size_t>(v) * W + u0 + i] =
-              rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID ? m.label_of[rh.hit.instID[0][i]]
-                                                          : kLabelNothing;
+              m.label_of[rh.hit.instID[0][i]];
       }
     }
   }
@@ -617,8 +609,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     if (l < m.count) {
       ++out.visible_px[l];
       ++out.visible_px_unoccluded[l];
-    } else if (l >= kLabelOccluder0 && l < kLabelBackground &&
-               m.label_no_occluders[pix] < m.count) {
+    } else if (!m.occluders.empty() && m.label_no_occluders[pix] < m.count) {
       ++out.visible_px_unoccluded[m.label_no_occluders[pix]];
     }
   }
@@ -635,9 +626,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
 
   // Noise and artefacts, per pixel from the noise-free images.
   t1 = std::chrono::steady_clock::now();
-  // m.hole is all zero between frames: this frame's discs are set here and cleared after.
-  m.hole.resize(n, 0);
-  m.hole_px.clear();
+  m.hole.assign(n, 0);
   if (noise.dropouts.enabled && noise.dropouts.hole_rate > 0) {
     std::uint64_t state = derive_seed(frame_seed, "holes");
     auto next = [&] { return unit_interval(splitmix64(state)); };
@@ -660,10 +649,9 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       for (int v = v0; v <= v1; ++v)
         for (int u = u0; u <= u1; ++u)
           if ((u + 0.5 - cu) * (u + 0.5 - cu) + (v + 0.5 - cv) * (v + 0.5 - cv) <= r * r)
-            m.hole_px.push_back(static_cast<std::size_t>(v) * W + u);
+            m.hole[static_cast<std::size_t>(v) * W + u] = 1;
     }
   }
-  for (std::size_t pix : m.hole_px) m.hole[pix] = 1;
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = m.p.camera.z_min, z_max = m.p.camera.z_max;
   const double unit = K.depth_scale;
@@ -720,7 +708,6 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       out.depth_m[pix] = static_cast<float>(noise.quantize ? q * unit : z);
     }
   }
-  for (std::size_t pix : m.hole_px) m.hole[pix] = 0;
   m.times.noise = seconds_since(t1);
 }
 

@@ -86,7 +86,7 @@ TEST(Episode, FastMotionBaselineNeverBeatsPaperMode) {
   EXPECT_GT(s[1].node_err.max, 0.05) << "the jump was meant to break the baseline";
 }
 
-TEST(Episode, SameScoresWhenRunTwice) {
+TEST(Episode, SameScoresForAnyThreadCount) {
   const Scene scene = load_scene(kScenes / "occluder_pass.yaml");
   EpisodeOptions o;
   o.frames = 4;

@@ -57,6 +57,32 @@ class Cli : public ::testing::Test {
     EXPECT_FALSE(fs::exists(out)) << "a failed run must leave no output, not even its directory";
   }
 
+  // `command` (subcommand and arguments, without --out) is bad input: exit code 2, one
+  // line on stderr naming `names`, and neither the output nor a staging directory left.
+  void expect_refused(const std::string& command, const std::string& names) {
+    const CliRun r = run(command + " --out " + out.string(), dir);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out)) << command;
+    for (const auto& e : fs::directory_iterator(dir))
+      EXPECT_EQ(e.path().filename().string().find("result.partial"), std::string::npos);
+  }
+  // An existing output directory is refused by `command` and kept as it was; with --force
+  // it is replaced by one holding `written`.
+  void expect_existing_out_needs_force(const std::string& command, const fs::path& written) {
+    fs::create_directories(out);
+    std::ofstream(out / "keep.txt") << "mine";
+    const CliRun r = run(command + " --out " + out.string(), dir);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find("output directory exists (use --force"), std::string::npos) << r.err;
+    EXPECT_TRUE(fs::exists(out / "keep.txt"));
+    const CliRun f = run(command + " --quiet --force --out " + out.string(), dir);
+    EXPECT_EQ(f.code, 0) << f.err;
+    EXPECT_FALSE(fs::exists(out / "keep.txt"));
+    EXPECT_TRUE(fs::exists(out / written));
+  }
+
   fs::path good_sequence(int frames) {
     const fs::path seq = dir / "seq";
     const CliRun r =
@@ -313,29 +339,14 @@ TEST_F(Cli, RenderNoiseOffIsTheIdealCamera) {
 TEST_F(Cli, RenderBadInputLeavesNothing) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
   auto bad = [&](const std::string& args, const std::string& names) {
-    const CliRun r = run("render " + args + " --out " + out.string(), dir);
-    EXPECT_EQ(r.code, 2) << r.err;
-    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(out)) << args;
-    for (const auto& e : fs::directory_iterator(dir))
-      EXPECT_EQ(e.path().filename().string().find("result.partial"), std::string::npos);
+    expect_refused("render " + args, names);
   };
   bad("--scene " + scene + " --noise loud", "--noise");
   bad("--scene " + (dir / "none.yaml").string(), "none.yaml: cannot open scene");
   std::ofstream(dir / "hand.yaml") << "occluders:\n  - shape: mesh\n    mesh: gone.obj\n";
   bad("--scene " + (dir / "hand.yaml").string(), "hand.yaml:3: occluders[0].mesh: ");
-  // An existing output directory is refused unless --force, and kept as it was.
-  fs::create_directories(out);
-  std::ofstream(out / "keep.txt") << "mine";
-  const CliRun r = run("render --scene " + scene + " --frames 1 --out " + out.string(), dir);
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("output directory exists (use --force"), std::string::npos) << r.err;
-  EXPECT_TRUE(fs::exists(out / "keep.txt"));
-  const CliRun f =
-      run("render --quiet --force --scene " + scene + " --frames 1 --out " + out.string(), dir);
-  EXPECT_EQ(f.code, 0) << f.err;
-  EXPECT_FALSE(fs::exists(out / "keep.txt"));
-  EXPECT_TRUE(fs::exists(out / "depth" / "000000.png"));
+  expect_existing_out_needs_force("render --scene " + scene + " --frames 1",
+                                  fs::path("depth") / "000000.png");
 }
 
 // linksight run: the main job's outputs are complete and parse.
@@ -386,13 +397,7 @@ TEST_F(Cli, RunWritesScoresSummaryAndFigures) {
 TEST_F(Cli, RunBadInputLeavesNothing) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
   auto bad = [&](const std::string& args, const std::string& names) {
-    const CliRun r = run("run " + args + " --no-figures --out " + out.string(), dir);
-    EXPECT_EQ(r.code, 2) << r.err;
-    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(out)) << args;
-    for (const auto& e : fs::directory_iterator(dir))
-      EXPECT_EQ(e.path().filename().string().find("result.partial"), std::string::npos);
+    expect_refused("run " + args + " --no-figures", names);
   };
   bad((dir / "none.yaml").string(), "none.yaml: cannot open scene");
   bad(scene + " --set camera.fps=fast", "--set camera.fps=fast: camera.fps: expected a number");
@@ -406,18 +411,7 @@ TEST_F(Cli, RunBadInputLeavesNothing) {
                         (dir / "file" / "sub").string(), dir);
   EXPECT_EQ(nd.code, 2) << nd.err;
   EXPECT_NE(nd.err.find("file"), std::string::npos) << nd.err;
-  // An existing output directory is refused unless --force, and kept as it was.
-  fs::create_directories(out);
-  std::ofstream(out / "keep.txt") << "mine";
-  const CliRun r = run("run " + scene + " --frames 1 --no-figures --out " + out.string(), dir);
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("output directory exists (use --force"), std::string::npos) << r.err;
-  EXPECT_TRUE(fs::exists(out / "keep.txt"));
-  const CliRun f =
-      run("run --quiet --force --no-figures " + scene + " --frames 1 --out " + out.string(), dir);
-  EXPECT_EQ(f.code, 0) << f.err;
-  EXPECT_FALSE(fs::exists(out / "keep.txt"));
-  EXPECT_TRUE(fs::exists(out / "summary.json"));
+  expect_existing_out_needs_force("run " + scene + " --frames 1 --no-figures", "summary.json");
 }
 
 // Ctrl-C: the frames done so far are written whole, the summary says so, exit 130.
