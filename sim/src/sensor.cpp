@@ -140,6 +140,56 @@ PixelRect reachable(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
           clamp_to(std::ceil(v_max + margin_px), K.height - 1)};
 }
 
+// A body that may cast a projector shadow, seen from the projector: the bounds of its
+// silhouette on the projector's z = 1 plane and its least distance from the projector.
+// A segment from p to the projector meets the body only if p projects inside the
+// silhouette (the segment's points all project onto p) and p is farther than the body.
+struct Caster {
+  float x0 = -std::numeric_limits<float>::infinity(), x1 = -x0, y0 = x0, y1 = x1;
+  float dist2 = 0;  // squared least distance [m^2]
+  bool everywhere = true;  // a corner at or behind the projector plane: no silhouette bound
+
+  static Caster of(const Eigen::AlignedBox3d& box_W, const Eigen::Matrix3d& R_WP,
+                   const Eigen::Vector3d& p_WP) {
+    Caster c;
+    if (box_W.isEmpty()) {  // nothing to cast a shadow
+      c.everywhere = false;
+      c.x0 = c.y0 = std::numeric_limits<float>::infinity();
+      c.x1 = c.y1 = -c.x0;
+      return c;
+    }
+    double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
+    for (int k = 0; k < 8; ++k) {
+      const Eigen::Vector3d q =
+          R_WP.transpose() * (box_W.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)) - p_WP);
+      if (!(q.z() > 1e-6)) return c;
+      x0 = std::min(x0, q.x() / q.z());
+      x1 = std::max(x1, q.x() / q.z());
+      y0 = std::min(y0, q.y() / q.z());
+      y1 = std::max(y1, q.y() / q.z());
+    }
+    // Margins for the float arithmetic of the test and of the shadow ray's origin
+    // (1e-5 m off the surface): 1e-4 on the plane, 1 mm in distance.
+    constexpr double kSlack = 1e-4;
+    c.everywhere = false;
+    c.x0 = static_cast<float>(x0 - kSlack);
+    c.x1 = static_cast<float>(x1 + kSlack);
+    c.y0 = static_cast<float>(y0 - kSlack);
+    c.y1 = static_cast<float>(y1 + kSlack);
+    const double d = std::max(0.0, box_W.exteriorDistance(p_WP) - 1e-3);
+    c.dist2 = static_cast<float>(d * d);
+    return c;
+  }
+  /// q: the ray's start in the projector's frame (z along the optical axis).
+  [[nodiscard]] bool may_block(const Eigen::Vector3f& q) const {
+    if (everywhere) return true;
+    if (!(q.z() > 0)) return true;  // beside or behind the projector: no silhouette test
+    if (q.squaredNorm() <= dist2) return false;
+    const float x = q.x() / q.z(), y = q.y() / q.z();
+    return x >= x0 && x <= x1 && y >= y0 && y <= y1;
+  }
+};
+
 enum Stream : std::uint64_t { kJitter = 0, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6 };
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -238,27 +288,37 @@ struct Sensor::Impl {
   int count = 0;
   std::vector<Occluder> occluders;
   RTCDevice device = nullptr;
+  // Two top-level scenes: `top` holds what moves (chain and occluder instances), `statics`
+  // the background flattened into world coordinates. A static background fills the image,
+  // and one flat BVH casts faster than instances; the moving part is cast only where
+  // it can be seen.
   RTCScene top = nullptr;
+  RTCScene statics = nullptr;
   std::vector<RTCScene> subscenes;
   std::vector<RTCGeometry> chain;      // instance handles (owned)
   std::vector<RTCGeometry> occluding;  // instance handles (owned)
-  std::vector<RTCGeometry> statics;    // instance handles (owned)
-  std::vector<unsigned> chain_id, occluder_id, static_id;  // their IDs in `top`
+  std::vector<unsigned> chain_id, occluder_id;  // their IDs in `top`
   // By instance ID in `top`:
   std::vector<std::uint8_t> label_of;
   std::vector<Eigen::Matrix3f> R_of;
   std::vector<float> reflectance_of;
+  // By geometry ID in `statics`: world bounds, reflectance, and whether the object is
+  // convex (a convex body cannot shadow its own lit side, so its shadow rays skip it).
+  std::vector<Eigen::AlignedBox3d> static_box;
+  std::vector<float> static_reflectance;
+  std::vector<bool> static_convex;
   // Per-pixel scratch, kept between frames.
-  std::vector<float> cos_c, cos_p;
+  std::vector<float> cos_c, cos_p, reflect;
   std::vector<std::uint8_t> lit, hole, label_no_occluders;
   Eigen::AlignedBox3d component_box;  // a component's bounds in its own frame K
+  std::vector<Eigen::AlignedBox3d> occluder_box;  // each occluder's bounds in its own frame
   SensorTimes times;
 
   ~Impl() {
     for (RTCGeometry g : chain) rtcReleaseGeometry(g);
     for (RTCGeometry g : occluding) rtcReleaseGeometry(g);
-    for (RTCGeometry g : statics) rtcReleaseGeometry(g);
     if (top) rtcReleaseScene(top);
+    if (statics) rtcReleaseScene(statics);
     for (RTCScene s : subscenes) rtcReleaseScene(s);
     if (device) rtcReleaseDevice(device);
   }
@@ -274,6 +334,15 @@ struct Sensor::Impl {
     subscenes.push_back(s);
     // Watertight: no rays slip between the triangles of a curved surface.
     rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST);
+    attach_mesh(s, m, Eigen::Isometry3f::Identity(), 0xFFFFFFFFu);
+    rtcCommitScene(s);
+    check("mesh scene");
+    return s;
+  }
+
+  // Attaches mesh `m`, its vertices moved by X, to scene `s`; returns its geometry ID.
+  unsigned attach_mesh(RTCScene s, const TriangleMesh& m, const Eigen::Isometry3f& X,
+                       unsigned mask) {
     RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
         g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), m.vertices.size()));
@@ -284,8 +353,10 @@ struct Sensor::Impl {
       check("mesh buffers");
       throw std::runtime_error("Embree: cannot allocate mesh buffers");
     }
-    for (std::size_t i = 0; i < m.vertices.size(); ++i)
-      for (int k = 0; k < 3; ++k) v[3 * i + k] = m.vertices[i][k];
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+      const Eigen::Vector3f x = X * m.vertices[i];
+      for (int k = 0; k < 3; ++k) v[3 * i + k] = x[k];
+    }
     const auto n = static_cast<int>(m.vertices.size());
     for (std::size_t i = 0; i < m.triangles.size(); ++i) {
       for (int k = 0; k < 3; ++k) {
@@ -298,12 +369,12 @@ struct Sensor::Impl {
         t[3 * i + k] = static_cast<unsigned>(idx);
       }
     }
+    rtcSetGeometryMask(g, mask);
     rtcCommitGeometry(g);
-    rtcAttachGeometry(s, g);
+    const unsigned id = rtcAttachGeometry(s, g);
     rtcReleaseGeometry(g);
-    rtcCommitScene(s);
-    check("mesh scene");
-    return s;
+    check("mesh");
+    return id;
   }
 
   RTCGeometry instance(RTCScene sub, const Eigen::Isometry3d& X, unsigned mask,
@@ -373,16 +444,33 @@ Sensor::Sensor(const SensorParams& params, const ComponentGeometry& geometry,
                                  static_cast<std::uint8_t>(c), params.chain_reflectance, m.chain_id));
   }
   for (std::size_t k = 0; k < m.occluders.size(); ++k) {
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3f& v : occluder_meshes[k].vertices) box.extend(v.cast<double>());
+    m.occluder_box.push_back(box);
     m.occluding.push_back(m.instance(m.mesh_scene(occluder_meshes[k]),
                                      m.occluders[k].path.pose(0.0), kMaskOccluder,
                                      static_cast<std::uint8_t>(kLabelOccluder0 + k),
                                      m.occluders[k].reflectance, m.occluder_id));
   }
+  m.statics = rtcNewScene(m.device);
+  rtcSetSceneFlags(m.statics, RTC_SCENE_FLAG_ROBUST);
   for (std::size_t k = 0; k < background.size(); ++k) {
-    m.statics.push_back(m.instance(m.mesh_scene(background_meshes[k]), background[k].X_WO,
-                                   kMaskScene, kLabelBackground, background[k].reflectance, m.static_id));
+    const Eigen::Isometry3f X_WO = background[k].X_WO.cast<float>();
+    const unsigned id = m.attach_mesh(m.statics, background_meshes[k], X_WO, kMaskScene);
+    if (m.static_box.size() <= id) {
+      m.static_box.resize(id + 1);
+      m.static_reflectance.resize(id + 1, 1.0F);
+      m.static_convex.resize(id + 1, false);
+    }
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3f& v : background_meshes[k].vertices)
+      box.extend((X_WO * v).cast<double>());
+    m.static_box[id] = box;
+    m.static_reflectance[id] = static_cast<float>(background[k].reflectance);
+    m.static_convex[id] = background[k].shape.kind != Shape::Kind::mesh;
   }
   rtcCommitScene(m.top);
+  rtcCommitScene(m.statics);
   m.check("scene");
 }
 
@@ -411,8 +499,16 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     rtcCommitGeometry(m.chain[c]);
     m.R_of[m.chain_id[c]] = X_WK[c].linear().cast<float>();
   }
+  std::vector<Eigen::AlignedBox3d> moving_W;  // world bounds: the chain, then each occluder
+  moving_W.emplace_back();
+  for (int c = 0; c < m.count; ++c)
+    for (int k = 0; k < 8; ++k)
+      moving_W[0].extend(X_WK[c] * m.component_box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
   for (std::size_t k = 0; k < m.occluders.size(); ++k) {
     const Eigen::Isometry3d X_WO = m.occluders[k].path.pose(t);
+    moving_W.emplace_back();
+    for (int c = 0; c < 8; ++c)
+      moving_W.back().extend(X_WO * m.occluder_box[k].corner(static_cast<Eigen::AlignedBox3d::CornerType>(c)));
     set_transform(m.occluding[k], X_WO);
     rtcCommitGeometry(m.occluding[k]);
     m.R_of[m.occluder_id[k]] = X_WO.linear().cast<float>();
@@ -436,6 +532,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   out.incidence.assign(n, std::numeric_limits<float>::quiet_NaN());
   m.cos_c.assign(n, 0.0F);
   m.cos_p.assign(n, 0.0F);
+  m.reflect.assign(n, 0.0F);
   m.lit.assign(n, 1);
   const std::uint64_t frame_seed = derive_seed(derive_seed(seed, "sensor"), frame);
   const int threads = m.p.threads > 0 ? m.p.threads : omp_get_max_threads();
@@ -450,6 +547,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   // Rays in float, as Embree takes them.
   const Eigen::Matrix3f R_WC_f = R_WC.cast<float>();
   const Eigen::Vector3f o_Wf = o_W.cast<float>(), z_f = Eigen::Vector3f::UnitZ();
+  const Eigen::Vector3f P_Wf = P_W.cast<float>();
   const bool pinhole = K.model == io::Distortion::none;
   const double inv_fx = 1.0 / K.fx, inv_fy = 1.0 / K.fy;
   // Ray direction of pixel i in W, scaled so that its camera-frame z is 1: the hit
@@ -474,22 +572,31 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   for (int i = 0; i < kPacket; ++i)
     set_lane(shadow_idle, i, o_Wf, z_f, 0.0F, 0xFFFFFFFFu);
 
-  // Culling: pixels outside these rectangles cannot see anything (scene_rect) or cannot
-  // see the chain (chain_rect).
+  // Culling: pixels outside these rectangles cannot see anything (scene_rect), a moving
+  // body (moving_rect, one per body) or the chain (chain_rect).
   const double margin_px = 1.0 + (jitter ? noise.lateral.sigma_px * kMaxNormal32 : 0.0);
-  PixelRect scene_rect{0, W - 1, 0, H - 1}, chain_rect = scene_rect;
+  const PixelRect everything{0, W - 1, 0, H - 1};
+  PixelRect scene_rect = everything;
+  std::vector<PixelRect> moving_rect(moving_W.size(), everything);
+  const bool any_static = !m.static_box.empty();
+  // Shadow culling: a shadow ray from p to the projector can be blocked by a body only if
+  // p lies inside the body's silhouette seen from the projector and farther than the body.
+  const Eigen::Matrix3f R_CW_f = R_WC_f.transpose();
+  std::vector<Caster> moving_casters(moving_W.size()), static_casters(m.static_box.size());
   if (m.p.cull) {
-    RTCBounds b;
-    rtcGetSceneBounds(m.top, &b);
-    scene_rect = reachable(Eigen::Vector3d(b.lower_x, b.lower_y, b.lower_z),
-                           Eigen::Vector3d(b.upper_x, b.upper_y, b.upper_z), m.p.camera.X_WC, K,
-                           margin_px);
-    Eigen::AlignedBox3d chain_W;
-    for (const Eigen::Isometry3d& X : X_WK)
-      for (int c = 0; c < 8; ++c)
-        chain_W.extend(X * m.component_box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c)));
-    chain_rect = reachable(chain_W.min(), chain_W.max(), m.p.camera.X_WC, K, margin_px);
+    Eigen::AlignedBox3d all_W;
+    for (std::size_t k = 0; k < moving_W.size(); ++k) {
+      moving_rect[k] = reachable(moving_W[k].min(), moving_W[k].max(), m.p.camera.X_WC, K, margin_px);
+      moving_casters[k] = Caster::of(moving_W[k], R_WC, P_W);
+      all_W.extend(moving_W[k]);
+    }
+    for (std::size_t k = 0; k < m.static_box.size(); ++k) {
+      static_casters[k] = Caster::of(m.static_box[k], R_WC, P_W);
+      all_W.extend(m.static_box[k]);
+    }
+    scene_rect = reachable(all_W.min(), all_W.max(), m.p.camera.X_WC, K, margin_px);
   }
+  const PixelRect& chain_rect = moving_rect[0];
 
   auto t1 = std::chrono::steady_clock::now();
   // Rows dealt out in small chunks: the link covers a band of rows, so halves would not
@@ -511,49 +618,73 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       dirs[i] = u < W ? direction(u, v, static_cast<std::size_t>(v) * W + u) : z_f;
       set_lane(rh, i, o_Wf, dirs[i], 0xFFFFFFFFu);  // Debian's Embree filters by mask
     }
-    rtcIntersect16(valid, m.top, &ctx, &rh);
-    alignas(64) RTCRay16 sr;  // filled from shadow_idle on the first shadow ray
-    alignas(64) int svalid[kPacket] = {};
-    bool any_shadow = false;
+    // The background first: its hits shorten the rays into the moving part. A ray keeps
+    // the nearer of the two hits, as one cast of both scenes would.
+    if (any_static) rtcIntersect16(valid, m.statics, &ctx, &rh);
+    if (std::any_of(moving_rect.begin(), moving_rect.end(),
+                    [&](const PixelRect& r) { return r.touches(u0, v); }))
+      rtcIntersect16(valid, m.top, &ctx, &rh);
+    alignas(64) RTCRay16 sr[2];  // shadow rays into the moving part and the background
+    alignas(64) int svalid[2][kPacket] = {};
+    bool any_shadow[2] = {false, false};
     for (int i = 0; i < kPacket; ++i) {
       if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
       const std::size_t pix = static_cast<std::size_t>(v) * W + u0 + i;
       const unsigned inst = rh.hit.instID[0][i];
-      const double tz = rh.ray.tfar[i];
-      // Embree reports instance hits' normals in the instance's own frame.
-      Eigen::Vector3d nrm = (m.R_of[inst] * Eigen::Vector3f(rh.hit.Ng_x[i], rh.hit.Ng_y[i],
-                                                            rh.hit.Ng_z[i]))
-                                .cast<double>()
-                                .normalized();
-      const Eigen::Vector3d d_i = dirs[i].cast<double>();
-      const Eigen::Vector3d d = d_i.normalized();
-      if (nrm.dot(d) > 0) nrm = -nrm;
-      const Eigen::Vector3d p_W = o_W + tz * d_i;
-      const Eigen::Vector3d to_p = P_W - p_W;
-      out.label[pix] = m.label_of[inst];
-      out.depth_clean_m[pix] = static_cast<float>(tz);
-      const double cos_c = std::clamp(-nrm.dot(d), 0.0, 1.0);
-      m.cos_c[pix] = static_cast<float>(cos_c);
+      const bool moving = inst != RTC_INVALID_GEOMETRY_ID;
+      const unsigned geom = rh.hit.geomID[i];
+      const float tz = rh.ray.tfar[i];
+      // Embree reports instance hits' normals in the instance's own frame. Float math
+      // with one square root per norm product: this block runs once per pixel.
+      Eigen::Vector3f nrm(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
+      if (moving) nrm = m.R_of[inst] * nrm;
+      const float n2 = nrm.squaredNorm();
+      const float nd = nrm.dot(dirs[i]);
+      if (nd > 0) nrm = -nrm;  // face the camera
+      const Eigen::Vector3f p_W = o_Wf + tz * dirs[i];
+      const Eigen::Vector3f to_p = P_Wf - p_W;
+      out.label[pix] = moving ? m.label_of[inst] : kLabelBackground;
+      m.reflect[pix] = moving ? m.reflectance_of[inst] : m.static_reflectance[geom];
+      out.depth_clean_m[pix] = tz;
+      const float cos_c = std::min(std::abs(nd) / std::sqrt(n2 * dirs[i].squaredNorm()), 1.0F);
+      m.cos_c[pix] = cos_c;
       out.incidence[pix] = static_cast<float>(acos_unit(cos_c));
-      m.cos_p[pix] = static_cast<float>(nrm.dot(to_p) / to_p.norm());
-      if (shadows && m.cos_p[pix] > 0) {
-        const Eigen::Vector3d org = p_W + 1e-5 * nrm;  // off the surface it starts on
-        const Eigen::Vector3d sd = P_W - org;
-        if (!any_shadow) sr = shadow_idle;
-        svalid[i] = -1;
-        any_shadow = true;
-        set_lane(sr, i, org, sd, 1.0F, 0xFFFFFFFFu);  // tfar 1: up to the projector
-      } else if (shadows) {
+      const float cos_p = nrm.dot(to_p) / std::sqrt(n2 * to_p.squaredNorm());
+      m.cos_p[pix] = cos_p;
+      if (!shadows) continue;
+      if (!(cos_p > 0)) {
         m.lit[pix] = 0;  // the projector sees the surface from behind
+        continue;
+      }
+      const Eigen::Vector3f org = p_W + (1e-5F / std::sqrt(n2)) * nrm;  // off the surface
+      const Eigen::Vector3f sd = P_Wf - org;
+      // Which scenes can block it: the moving part unless culled; the background unless
+      // every background body is culled, or is the convex body the ray starts on.
+      bool need[2] = {true, any_static};
+      if (m.p.cull) {
+        const Eigen::Vector3f q = R_CW_f * (p_W - P_Wf);  // p in the projector's frame
+        need[0] = std::any_of(moving_casters.begin(), moving_casters.end(),
+                              [&](const Caster& c) { return c.may_block(q); });
+        need[1] = false;
+        for (std::size_t k = 0; k < static_casters.size() && !need[1]; ++k)
+          need[1] = !(!moving && k == geom && m.static_convex[k]) && static_casters[k].may_block(q);
+      }
+      for (int s = 0; s < 2; ++s) {
+        if (!need[s]) continue;
+        if (!any_shadow[s]) sr[s] = shadow_idle;
+        svalid[s][i] = -1;
+        any_shadow[s] = true;
+        set_lane(sr[s], i, org, sd, 1.0F, 0xFFFFFFFFu);  // tfar 1: up to the projector
       }
     }
-    if (any_shadow) {
+    for (int s = 0; s < 2; ++s) {
+      if (!any_shadow[s]) continue;
       // Incoherent context: Embree 3.13.5's coherent occlusion path hung on these rays.
       RTCIntersectContext shadow_ctx;
       rtcInitIntersectContext(&shadow_ctx);
-      rtcOccluded16(svalid, m.top, &shadow_ctx, &sr);
+      rtcOccluded16(svalid[s], s == 0 ? m.top : m.statics, &shadow_ctx, &sr[s]);
       for (int i = 0; i < kPacket; ++i) {
-        if (svalid[i] && sr.tfar[i] < 0.0F)  // -inf: blocked
+        if (svalid[s][i] && sr[s].tfar[i] < 0.0F)  // -inf: blocked
           m.lit[static_cast<std::size_t>(v) * W + u0 + i] = 0;
       }
     }
@@ -597,10 +728,12 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       rtcInitIntersectContext(&ctx);
       ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
       rtcIntersect16(valid, m.top, &ctx, &rh);
+      if (any_static) rtcIntersect16(valid, m.statics, &ctx, &rh);  // the background may be nearer
       for (int i = 0; i < kPacket; ++i) {
-        if (valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID)
-          m.label_no_occluders[static_cast<std::size_t>(v) * W + u0 + i] =
-              m.label_of[rh.hit.instID[0][i]];
+        if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+        const unsigned inst = rh.hit.instID[0][i];
+        m.label_no_occluders[static_cast<std::size_t>(v) * W + u0 + i] =
+            inst != RTC_INVALID_GEOMETRY_ID ? m.label_of[inst] : kLabelBackground;
       }
     }
   }
@@ -664,10 +797,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       const std::uint64_t key = pixel_key(frame_seed, pix);
       if (noise.shadow.enabled && !m.lit[pix]) continue;
       if (noise.dropouts.enabled) {
-        const double reflect = out.label[pix] < m.count          ? m.p.chain_reflectance
-                               : out.label[pix] < kLabelBackground
-                                   ? m.occluders[out.label[pix] - kLabelOccluder0].reflectance
-                                   : 1.0;
+        const double reflect = m.reflect[pix];
         if (m.cos_c[pix] < cos_max || m.cos_p[pix] < cos_max)
           continue;
         if (reflect * m.cos_p[pix] / (z0 * z0) < noise.dropouts.min_signal) continue;

@@ -298,6 +298,48 @@ TEST(Sensor, CullingLeavesTheImagesUnchanged) {
   }
 }
 
+// Shadow culling skips shadow rays that cannot be blocked: by the moving bodies' and each
+// background body's silhouettes seen from the projector, and a convex body never shadows
+// its own lit side. Here the chain and a hand shadow a wall behind them, a box on the
+// floor shadows the wall too, and a wide baseline makes the shadows wide.
+TEST(Sensor, ShadowCullingLeavesTheImagesUnchanged) {
+  const ComponentGeometry g;
+  SensorParams p = side_view(NoiseParams::sr300());
+  p.noise.shadow.baseline = 0.12;
+  Occluder hand;
+  hand.shape.half_extents = Eigen::Vector3d(0.03, 0.01, 0.03);
+  hand.path = BaseTrajectory(
+      {{0.0, Eigen::Isometry3d(Eigen::Translation3d(0.1, -0.2, 0.5))},
+       {1.0, Eigen::Isometry3d(Eigen::Translation3d(0.4, -0.2, 0.52))}},
+      {});
+  BackgroundObject wall, floor, block;
+  wall.shape.half_extents = Eigen::Vector3d(1.0, 0.01, 1.0);
+  wall.X_WO.translation() = Eigen::Vector3d(0.25, 0.12, 0.5);
+  floor.shape.half_extents = Eigen::Vector3d(1.0, 0.5, 0.01);
+  floor.X_WO.translation() = Eigen::Vector3d(0.25, 0.0, 0.38);
+  block.shape.half_extents = Eigen::Vector3d(0.03, 0.03, 0.03);
+  block.X_WO.translation() = Eigen::Vector3d(0.05, 0.0, 0.42);
+  const std::vector<Eigen::Isometry3d> X = straight_chain(g);
+  p.cull = false;
+  Sensor reference(p, g, {hand}, {wall, floor, block});
+  p.cull = true;
+  Sensor culled(p, g, {hand}, {wall, floor, block});
+  p.noise.shadow.enabled = false;
+  Sensor unshadowed(p, g, {hand}, {wall, floor, block});
+  for (const double t : {0.0, 0.5, 1.0}) {
+    const DepthFrame a = reference.render(X, t, 7, 3);
+    const DepthFrame b = culled.render(X, t, 7, 3);
+    const DepthFrame c = unshadowed.render(X, t, 7, 3);
+    EXPECT_EQ(a.depth.data, b.depth.data) << "t = " << t;
+    EXPECT_EQ(a.label, b.label) << "t = " << t;
+    // The shadows are there to be culled wrongly: many pixels lose their depth to them.
+    long shadowed = 0;
+    for (std::size_t i = 0; i < a.depth.data.size(); ++i)
+      shadowed += a.depth.data[i] == 0 && c.depth.data[i] != 0;
+    EXPECT_GT(shadowed, 2000) << "t = " << t;
+  }
+}
+
 template <class F>
 void expect_invalid(F&& make, const std::string& needle) {
   try {
