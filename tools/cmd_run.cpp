@@ -291,7 +291,7 @@ Runner add_run(CLI::App& app) {
                  "--set 'occluders[0].reflectance=0.5'");
   app.add_option("--compare", o->compare,
                  "tracker modes to run on the same frames, comma-separated: "
-                 "paper,accelerated-som (default: the scene's tracker.mode)");
+                 "paper,paper-centred,accelerated-som (default: the scene's tracker.mode)");
   app.add_option("--frames", o->frames, "camera frames (0: the scene's duration)")
       ->capture_default_str();
   app.add_option("--threads", o->threads, "OpenMP threads for the sensor (0: default)")

@@ -224,7 +224,7 @@ Runner add_track(CLI::App& app) {
       ->required();
   app.add_option("--intrinsics", o->intrinsics,
                  "intrinsics.json for depth PNGs (default: beside the frames or in their parent)");
-  app.add_option("--mode", o->mode, "paper | accelerated-som")->capture_default_str();
+  app.add_option("--mode", o->mode, "paper | accelerated-som | paper-centred")->capture_default_str();
   app.add_option("--init", o->init, "LSQ init of paper mode: paper | pca")->capture_default_str();
   app.add_option("--som-init", o->som_init,
                  "init of accelerated-som mode: straight-line | random-sample")

@@ -25,7 +25,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
-COLOURS = {"paper": "tab:blue", "accelerated-som": "tab:orange"}
+COLOURS = {"paper": "tab:blue", "accelerated-som": "tab:orange", "paper-centred": "tab:green"}
 EVENT_COLOURS = {"occlusion": "0.85", "fast_motion": "mistyrose"}
 
 

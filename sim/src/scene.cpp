@@ -451,7 +451,7 @@ void read_tracker(const Reader& r, const YAML::Node& n, TrackerParams& p) {
          {"mode", "init", "som_init", "backend", "threads", "iterations", "poly_order",
           "max_points", "tolerance_m"});
   p.mode = parse_mode(r.choice(n, w, "mode", std::string(to_string(p.mode)),
-                               {"paper", "accelerated-som"}));
+                               {"paper", "accelerated-som", "paper-centred"}));
   p.init.method = parse_init(r.choice(n, w, "init", p.init.method == InitMethod::pca ? "pca" : "paper",
                                       {"paper", "pca"}));
   p.som_init = r.choice(n, w, "som_init", "straight-line", {"straight-line", "random-sample"}) ==

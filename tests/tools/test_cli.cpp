@@ -580,7 +580,7 @@ TEST_F(Cli, UnknownFlagAndBadValues) {
                    "must be >= 2");
   expect_bad_input("--input " + seq.string() + " --nodes abc", "--nodes", "");
   expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'",
-                   "paper or accelerated-som");
+                   "paper, accelerated-som or paper-centred");
   expect_bad_input("--input " + seq.string() + " --threads 100000",
                    "TrackerParams.threads = 100000", "<= 1024");
   expect_bad_input("--input " + seq.string() + " --nodes 2000000000",

@@ -1,6 +1,7 @@
 // The tracker on synthetic chains with truth, parameterized over back ends.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "linksight/tracker/tracker.hpp"
@@ -247,6 +248,46 @@ TEST_P(TrackerBackends, AcceleratedSomRandomInitNeverFindsTheOrder) {
   EXPECT_NE(last[0], last[1]);  // the outcome depends on the draw
 }
 
+// paper-centred runs the paper's SOM unchanged (same associations, same internal nodes,
+// frame after frame) and moves only its output: each node 2/3 r further from the camera
+// along its own viewing ray. Its accuracy on rendered frames is tested in tests/sim.
+TEST_P(TrackerBackends, PaperCentredIsPaperMovedAlongEachViewingRay) {
+  const Nodes truth = test::test_chain(ChainShape::c_shape);
+  TrackerParams p = test::params_for(GetParam());
+  Tracker paper(p);
+  p.mode = TrackerMode::paper_centred;
+  Tracker centred(p);
+  const double offset = kCentreOffset * p.geometry.ball_radius;
+  EXPECT_NEAR(offset, 0.010, 1e-12);
+  for (int f = 0; f < 3; ++f) {
+    const Cloud cloud = chain_cloud(truth, 40 + f, true, 0.001);
+    const FrameResult a = paper.step(cloud);
+    const FrameResult b = centred.step(cloud);
+    ASSERT_FALSE(b.lost);
+    EXPECT_EQ(a.counts, b.counts) << "frame " << f;
+    EXPECT_EQ(a.init_reason, b.init_reason) << "frame " << f;
+    const auto la = paper.last_association(), lb = centred.last_association();
+    ASSERT_EQ(la.size(), lb.size());
+    EXPECT_TRUE(std::equal(la.begin(), la.end(), lb.begin())) << "frame " << f;
+    ASSERT_EQ(a.nodes.size(), b.nodes.size());
+    for (std::size_t j = 0; j < a.nodes.size(); ++j) {
+      const Eigen::Vector3d ray = a.nodes[j].normalized();
+      const Eigen::Vector3d moved = b.nodes[j] - a.nodes[j];
+      EXPECT_NEAR(moved.dot(ray), offset, 1e-12) << "frame " << f << " node " << j;
+      EXPECT_NEAR((moved - moved.dot(ray) * ray).norm(), 0.0, 1e-12) << "node " << j;
+    }
+    // The SDF metric scores the output: centres fit the component model better than
+    // surface means.
+    EXPECT_LT(b.sdf_error, a.sdf_error) << "frame " << f;
+  }
+  // A lost frame repeats the last output, still moved.
+  const FrameResult lost = centred.step(Cloud{});
+  ASSERT_TRUE(lost.lost);
+  const FrameResult last_paper = paper.step(Cloud{});
+  for (std::size_t j = 0; j < lost.nodes.size(); ++j)
+    EXPECT_NEAR((lost.nodes[j] - last_paper.nodes[j]).norm(), offset, 1e-12);
+}
+
 TEST_P(TrackerBackends, LostFramesReportWhyAndKeepTheState) {
   const Nodes truth = test::test_chain(ChainShape::straight);
   Tracker tracker(params());
@@ -349,6 +390,16 @@ TEST(TrackerParams, ValidateNamesFieldAndValue) {
   EXPECT_NE(message(p).find("ComponentGeometry.ball_radius"), std::string::npos);
   EXPECT_THROW((void)parse_mode("fast"), std::invalid_argument);
   EXPECT_EQ(parse_mode("accelerated-som"), TrackerMode::accelerated_som);
+  for (const TrackerMode m :
+       {TrackerMode::paper, TrackerMode::accelerated_som, TrackerMode::paper_centred})
+    EXPECT_EQ(parse_mode(to_string(m)), m);
+  try {
+    (void)parse_mode("centred");
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "unknown mode 'centred' (expected paper, accelerated-som or paper-centred)");
+  }
   EXPECT_EQ(parse_init("paper"), InitMethod::paper);
 }
 

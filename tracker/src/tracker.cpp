@@ -32,7 +32,15 @@ void TrackerParams::validate() const {
 }
 
 std::string_view to_string(TrackerMode mode) {
-  return mode == TrackerMode::paper ? "paper" : "accelerated-som";
+  switch (mode) {
+    case TrackerMode::paper:
+      return "paper";
+    case TrackerMode::accelerated_som:
+      return "accelerated-som";
+    case TrackerMode::paper_centred:
+      return "paper-centred";
+  }
+  return "unknown";
 }
 std::string_view to_string(InitReason r) {
   switch (r) {
@@ -63,14 +71,30 @@ std::string_view to_string(LostReason r) {
 TrackerMode parse_mode(std::string_view name) {
   if (name == "paper") return TrackerMode::paper;
   if (name == "accelerated-som") return TrackerMode::accelerated_som;
+  if (name == "paper-centred") return TrackerMode::paper_centred;
   throw std::invalid_argument("unknown mode '" + std::string(name) +
-                              "' (expected paper or accelerated-som)");
+                              "' (expected paper, accelerated-som or paper-centred)");
 }
 InitMethod parse_init(std::string_view name) {
   if (name == "paper") return InitMethod::paper;
   if (name == "pca") return InitMethod::pca;
   throw std::invalid_argument("unknown init '" + std::string(name) + "' (expected paper or pca)");
 }
+
+namespace {
+// The frame's output from the SOM's nodes (which stay on the surface: the next frame's
+// association starts from them, as in the paper).
+Nodes output_nodes(const Nodes& som, const TrackerParams& p) {
+  if (p.mode != TrackerMode::paper_centred) return som;
+  Nodes out = som;
+  const double offset = kCentreOffset * p.geometry.ball_radius;
+  for (Eigen::Vector3d& q : out) {
+    const double d = q.norm();  // the camera sits at the origin of the cloud's frame
+    if (d > 0) q *= (d + offset) / d;
+  }
+  return out;
+}
+}  // namespace
 
 struct Tracker::State {
   std::unique_ptr<Backend> backend;
@@ -147,7 +171,7 @@ FrameResult Tracker::step(const Cloud& cloud) {
   if (r.lost_reason != LostReason::none) {
     // A lost frame leaves the state alone: the next frame continues from the last output.
     r.lost = true;
-    r.nodes = s.nodes;
+    r.nodes = output_nodes(s.nodes, params_);
     r.counts.assign(static_cast<std::size_t>(m), 0);
     r.sdf_error = std::numeric_limits<double>::quiet_NaN();
     s.has_association = false;
@@ -157,7 +181,7 @@ FrameResult Tracker::step(const Cloud& cloud) {
 
   const PointsView view{{s.x.data(), n}, {s.y.data(), n}, {s.z.data(), n}};
   s.backend->set_points(view);  // one upload per frame
-  const bool paper = params_.mode == TrackerMode::paper;
+  const bool paper = params_.mode != TrackerMode::accelerated_som;
   bool initialized_now = false;
   if (!s.has_previous) {
     s.nodes =
@@ -199,11 +223,11 @@ FrameResult Tracker::step(const Cloud& cloud) {
     if (params_.tolerance > 0.0 && max_move <= params_.tolerance) break;
   }
   s.has_previous = true;
-  r.nodes = s.nodes;
+  r.nodes = output_nodes(s.nodes, params_);
   r.counts = s.acc.count;
   r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   r.device_time_s = s.backend->device_seconds();
-  r.sdf_error = params_.compute_sdf ? sdf_error(view, s.nodes, params_.geometry)
+  r.sdf_error = params_.compute_sdf ? sdf_error(view, r.nodes, params_.geometry)
                                     : std::numeric_limits<double>::quiet_NaN();
   return r;
 }

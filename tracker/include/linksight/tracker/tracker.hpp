@@ -19,7 +19,15 @@ namespace linksight {
 enum class TrackerMode {
   paper,            ///< LSQ init, re-initialization on an empty neighbourhood (Sec. IV)
   accelerated_som,  ///< baseline: straight-line/random init, no LSQ re-initialization
+  /// paper's SOM, then each output node moved from the seen surface to the ball centre:
+  /// 2/3 r further along its viewing ray (not in the paper; see kCentreOffset)
+  paper_centred,
 };
+
+/// A SOM node is the mean of the surface points nearest it: on a ball seen from afar,
+/// the mean of its visible cap, which (sampled evenly over the image disc) lies
+/// 2/3 r in front of the centre along the viewing ray. paper_centred adds this back.
+inline constexpr double kCentreOffset = 2.0 / 3.0;  ///< of the ball radius
 
 /// Upper bounds that validate() enforces: beyond them a value is a typo, not a setting.
 inline constexpr int kMaxNodes = 1000;
@@ -66,7 +74,7 @@ enum class LostReason : std::uint8_t {
 
 /// Output of one frame.
 struct FrameResult {
-  Nodes nodes;                       ///< M+1 reference vectors, camera frame [m]
+  Nodes nodes;                       ///< M+1 reference vectors, camera frame [m] (paper_centred: moved to the ball centres)
   std::vector<std::int64_t> counts;  ///< |N_j| of the last iteration
   int iterations = 0;                ///< iterations run
   bool reinit = false;               ///< LSQ re-initialization fired (Sec. IV.C)
@@ -79,7 +87,7 @@ struct FrameResult {
   std::size_t n_out_of_range = 0;  ///< points dropped beyond kMaxCoordinate (100 m)
   double time_s = 0.0;             ///< tracking time (excludes the SDF metric) [s]
   double device_time_s = 0.0;      ///< kernel time on the device, within time_s (OpenCL) [s]
-  double sdf_error = 0.0;          ///< mean |SDF| [m] (Eq. 16); NaN when lost or disabled
+  double sdf_error = 0.0;          ///< mean |SDF| [m] (Eq. 16) of `nodes`; NaN when lost or disabled
 };
 
 /// Tracks one link over a sequence of clouds; each frame starts from the previous
