@@ -19,5 +19,6 @@ Runner add_simulate(CLI::App& app);
 Runner add_meshes(CLI::App& app);
 Runner add_render(CLI::App& app);
 Runner add_run(CLI::App& app);
+Runner add_sweep(CLI::App& app);
 
 }  // namespace linksight::cli

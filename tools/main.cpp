@@ -22,6 +22,10 @@ int main(int argc, char** argv) {
        "The main job: simulate a scene, render it, run every compared tracker mode on the "
        "same frames and score them (frames.csv, nodes.csv, summary.json, figures).",
        add_run},
+      {"sweep",
+       "A grid of short episodes over scene keys (noise, occluders, tracker mode, seed, "
+       "scene), one row per cell; shards for Slurm job arrays; 'sweep merge DIR' joins them.",
+       add_sweep},
       {"track", "Track the link through a sequence of clouds (PLY or 16-bit depth PNG).",
        add_track},
       {"synth", "Write a synthetic cloud sequence of the link with its true nodes.", add_synth},

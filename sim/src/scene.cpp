@@ -335,7 +335,8 @@ void read_camera(const Reader& r, const YAML::Node& c, CameraParams& cam) {
 }
 
 void read_noise(const Reader& r, const YAML::Node& n, NoiseParams& noise) {
-  r.only(n, "noise", {"preset", "axial", "lateral", "shadow", "dropouts", "edges", "quantize"});
+  r.only(n, "noise",
+         {"preset", "scale", "axial", "lateral", "shadow", "dropouts", "edges", "quantize"});
   noise = NoiseParams::preset(r.choice(n, "noise", "preset", "sr300", {"off", "sr300"}));
   constexpr double deg = std::numbers::pi / 180.0;
   if (const YAML::Node a = n["axial"]) {
@@ -378,6 +379,13 @@ void read_noise(const Reader& r, const YAML::Node& n, NoiseParams& noise) {
     x.p_flying = r.number(e, "noise.edges", "p_flying", x.p_flying, 0, 1);
   }
   noise.quantize = r.boolean(n, "noise", "quantize", noise.quantize);
+  // One knob for sweeps: scales every random term (axial sigma, ray jitter) after the
+  // blocks above; dropouts, edges and shadows are left as they are.
+  const double scale = r.number(n, "noise", "scale", 1.0, 0.0, 100.0);
+  noise.axial.a *= scale;
+  noise.axial.c *= scale;
+  noise.axial.k_theta *= scale;
+  noise.lateral.sigma_px *= scale;
 }
 
 void read_segmentation(const Reader& r, const YAML::Node& n, ExtractParams& p) {

@@ -173,6 +173,21 @@ TEST_F(Overrides, SetReachesScalarsNestedKeysListsAndVectors) {
             0.3);
 }
 
+TEST_F(Overrides, NoiseScaleMultipliesTheRandomTermsOnly) {
+  const Scene nominal = load_scene(kScenes / "static.yaml");
+  const Scene doubled = load_scene(kScenes / "static.yaml", {"noise.scale=2"});
+  EXPECT_DOUBLE_EQ(doubled.noise.axial.a, 2 * nominal.noise.axial.a);
+  EXPECT_DOUBLE_EQ(doubled.noise.axial.c, 2 * nominal.noise.axial.c);
+  EXPECT_DOUBLE_EQ(doubled.noise.axial.k_theta, 2 * nominal.noise.axial.k_theta);
+  EXPECT_DOUBLE_EQ(doubled.noise.lateral.sigma_px, 2 * nominal.noise.lateral.sigma_px);
+  EXPECT_EQ(doubled.noise.edges.p_flying, nominal.noise.edges.p_flying);
+  EXPECT_EQ(doubled.noise.dropouts.hole_rate, nominal.noise.dropouts.hole_rate);
+  EXPECT_GT(nominal.noise.axial.a, 0.0);
+  EXPECT_EQ(load_scene(kScenes / "static.yaml", {"noise.scale=0"}).noise.axial.a, 0.0);
+  EXPECT_NE(error_of(kScenes / "static.yaml", {"noise.scale=-1"}).find("noise.scale"),
+            std::string::npos);
+}
+
 TEST_F(Overrides, BadOverridesNameTheSetAndTheKey) {
   const auto scene = kScenes / "static.yaml";
   auto has = [](const std::string& what, const std::string& needle) {

@@ -1,0 +1,106 @@
+#pragma once
+/// @file Sweeps: a deterministic grid of short episodes over any scene keys, split into
+/// shards (one per process or Slurm array element) and merged back into one table.
+///
+/// A cell is one point of the grid: the base scene with one value per axis applied as
+/// `--set key=value` overrides. Its seed is derived from its values, never from its
+/// index or from who runs it, so a cell's row is the same on any machine and in any shard.
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "linksight/tracker/tracker.hpp"
+
+namespace linksight::sim {
+
+/// One axis: a scene key (as for --set; `scene` takes scene files) and its values.
+struct SweepAxis {
+  std::string key;
+  std::vector<std::string> values;
+};
+
+/// "key=v1,v2,..." as given to --axis. Throws io::InputError naming the argument.
+[[nodiscard]] SweepAxis parse_axis(const std::string& arg);
+/// A grid file: `axes:` a list of one-key maps, `- noise.scale: [0, 1, 2]`. Throws
+/// io::InputError naming the file, the line and the key.
+[[nodiscard]] std::vector<SweepAxis> read_grid(const std::filesystem::path& file);
+
+/// Most cells a sweep may have: beyond it a grid is a typo.
+inline constexpr std::size_t kMaxSweepCells = 1'000'000;
+
+struct SweepSpec {
+  std::filesystem::path scene;     ///< base scene; an axis `scene` replaces it per cell
+  std::vector<SweepAxis> axes;     ///< first axis slowest: cell index is row-major
+  std::vector<std::string> set;    ///< overrides applied to every cell, before the axes
+  std::vector<TrackerMode> modes;  ///< compared on each cell's frames; empty: the scene's mode
+  int frames = 0;                  ///< camera frames per cell; 0: the scene's duration
+  /// Throws std::invalid_argument naming the problem: no scene, no axis, an axis without
+  /// values, a key given twice, a value with a quote or line break, too many cells.
+  void validate() const;
+  [[nodiscard]] std::size_t cells() const;
+  /// Rows per cell: one per compared mode.
+  [[nodiscard]] std::size_t modes_per_cell() const { return modes.empty() ? 1 : modes.size(); }
+};
+
+struct SweepCell {
+  std::size_t index = 0;
+  std::vector<std::string> values;     ///< one per axis
+  std::filesystem::path scene;         ///< the scene file of this cell
+  std::vector<std::string> overrides;  ///< spec.set, then key=value per axis (not `scene`)
+  /// The cell's seed: the value of a `seed` axis, else derived from the base scene's seed
+  /// and every axis key=value of the cell.
+  std::uint64_t seed = 0;
+};
+/// Cell `index` of the grid (index < spec.cells()). Loads the scene to read its seed.
+[[nodiscard]] SweepCell sweep_cell(const SweepSpec& spec, std::size_t index);
+
+/// The deterministic columns: cell, mode, one per axis, seed, then the metrics (lengths
+/// in mm, as the names say).
+[[nodiscard]] std::vector<std::string> sweep_columns(const SweepSpec& spec);
+/// The timing columns: cell, mode, then tracker time and the cell's wall time.
+[[nodiscard]] std::vector<std::string> sweep_timing_columns();
+
+/// One row per (cell, mode): the values of sweep_columns() and sweep_timing_columns(),
+/// as text (shortest round-trip decimal, `nan` where undefined).
+struct SweepRow {
+  std::size_t cell = 0;
+  std::size_t mode = 0;  ///< position of the row's mode among the cell's modes
+  std::vector<std::string> values, timing;
+};
+
+/// Runs one cell's episode (sensor threads: 0 = OpenMP default; results do not depend
+/// on it). Throws io::InputError for a bad scene or override, naming it.
+[[nodiscard]] std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index,
+                                             int threads);
+
+/// The cells shard `shard` of `count` runs: those with index % count == shard.
+[[nodiscard]] std::vector<std::size_t> shard_cells(const SweepSpec& spec, int shard, int count);
+/// "shard_I_of_N.csv"
+[[nodiscard]] std::string shard_file_name(int shard, int count);
+
+/// The sweep's manifest, DIR/sweep.json: what every shard and the merge agree on.
+/// write_manifest creates DIR and the file, or checks that an existing one describes the
+/// same sweep (throws io::InputError naming what differs).
+void write_manifest(const std::filesystem::path& dir, const SweepSpec& spec);
+/// Reads DIR/sweep.json; throws io::InputError naming the file when missing or bad.
+[[nodiscard]] SweepSpec read_manifest(const std::filesystem::path& dir);
+
+/// Writes DIR/shard_I_of_N.csv atomically: every deterministic column, then the timing
+/// columns after the cell and mode.
+void write_shard(const std::filesystem::path& dir, const SweepSpec& spec, int shard, int count,
+                 const std::vector<SweepRow>& rows);
+/// Whether DIR/shard_I_of_N.csv exists with the right columns and exactly its cells.
+[[nodiscard]] bool shard_complete(const std::filesystem::path& dir, const SweepSpec& spec,
+                                  int shard, int count);
+
+struct MergeResult {
+  std::size_t cells = 0, rows = 0, shard_files = 0;
+};
+/// Reads every DIR/shard_*_of_*.csv, checks that each cell of the manifest's grid is
+/// there exactly once (throws io::InputError naming the missing and the doubled cells),
+/// and writes DIR/cells.csv and DIR/cells_timing.csv sorted by cell, atomically.
+MergeResult merge_sweep(const std::filesystem::path& dir);
+
+}  // namespace linksight::sim

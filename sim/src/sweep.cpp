@@ -1,0 +1,513 @@
+#include "linksight/sim/sweep.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "linksight/io/atomic_file.hpp"
+#include "linksight/io/error.hpp"
+#include "linksight/sim/episode.hpp"
+#include "linksight/sim/scene.hpp"
+#include "linksight/tracker/seed.hpp"
+
+namespace linksight::sim {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr const char* kManifest = "sweep.json";
+constexpr int kManifestVersion = 1;
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::string item;
+  std::stringstream ss(s);
+  while (std::getline(ss, item, sep)) out.push_back(item);
+  if (!s.empty() && s.back() == sep) out.emplace_back();
+  return out;
+}
+
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t");
+  if (b == std::string::npos) return "";
+  return s.substr(b, s.find_last_not_of(" \t") - b + 1);
+}
+
+// Shortest decimal text that reads back as the same double: the same bits give the same
+// bytes, on any machine.
+std::string num(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+std::string num(long v) { return std::to_string(v); }
+std::string num(int v) { return std::to_string(v); }
+std::string mm(double metres) { return num(metres * 1e3); }
+
+// The deterministic metrics, in column order.
+const char* const kMetrics[] = {
+    "frames",          "lost_frames",         "node_err_mean_mm",   "node_err_median_mm",
+    "node_err_p95_mm", "node_err_max_mm",     "pct_frames_under_2mm", "pct_frames_under_5mm",
+    "sdf_err_mean_mm", "polyline_err_mean_mm", "swaps",              "swap_frames",
+    "reinit_count",    "occluded_fraction_mean", "occluded_fraction_max", "events",
+    "events_recovered", "recover_frames_max", "non_finite_nodes"};
+const char* const kTiming[] = {"cell", "mode", "time_ms_mean", "time_ms_p95", "time_ms_max",
+                               "cell_wall_s"};
+
+std::string csv_line(const std::vector<std::string>& fields) {
+  std::string s;
+  for (std::size_t i = 0; i < fields.size(); ++i) s += (i ? "," : "") + fields[i];
+  return s + "\n";
+}
+
+// A shard file's header: the deterministic columns, then the timing columns after cell
+// and mode.
+std::vector<std::string> shard_columns(const SweepSpec& spec) {
+  std::vector<std::string> c = sweep_columns(spec);
+  for (std::size_t i = 2; i < std::size(kTiming); ++i) c.emplace_back(kTiming[i]);
+  return c;
+}
+
+struct ShardFile {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+};
+ShardFile read_csv(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in) throw io::InputError(path.string() + ": cannot be read");
+  ShardFile f;
+  std::string line;
+  if (!std::getline(in, line)) throw io::InputError(path.string() + ": empty file");
+  f.header = split(line, ',');
+  int n = 1;
+  while (std::getline(in, line)) {
+    ++n;
+    if (line.empty()) continue;
+    f.rows.push_back(split(line, ','));
+    if (f.rows.back().size() != f.header.size())
+      throw io::InputError(path.string() + ":" + std::to_string(n) + ": " +
+                           std::to_string(f.rows.back().size()) + " fields, expected " +
+                           std::to_string(f.header.size()));
+  }
+  return f;
+}
+
+std::size_t parse_index(const std::string& s, const fs::path& path) {
+  std::size_t v = 0;
+  const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (r.ec != std::errc() || r.ptr != s.data() + s.size())
+    throw io::InputError(path.string() + ": cell '" + s + "' is not an index");
+  return v;
+}
+
+// "3, 7-9, 12" for a sorted list, the first `limit` runs and a count of the rest.
+std::string ranges(const std::vector<std::size_t>& v, std::size_t limit = 8) {
+  std::string s;
+  std::size_t runs = 0, i = 0;
+  while (i < v.size()) {
+    std::size_t j = i;
+    while (j + 1 < v.size() && v[j + 1] == v[j] + 1) ++j;
+    if (runs < limit) {
+      if (runs) s += ", ";
+      s += std::to_string(v[i]);
+      if (j > i) {
+        s += '-';
+        s += std::to_string(v[j]);
+      }
+    }
+    ++runs;
+    i = j + 1;
+  }
+  if (runs > limit) s += " and " + std::to_string(runs - limit) + " more runs";
+  return s;
+}
+
+}  // namespace
+
+SweepAxis parse_axis(const std::string& arg) {
+  const auto eq = arg.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw io::InputError("--axis '" + arg + "': expected key=v1,v2,...");
+  SweepAxis a;
+  a.key = trim(arg.substr(0, eq));
+  for (const std::string& v : split(arg.substr(eq + 1), ',')) {
+    if (trim(v).empty()) throw io::InputError("--axis '" + arg + "': empty value");
+    a.values.push_back(trim(v));
+  }
+  if (a.values.empty()) throw io::InputError("--axis '" + arg + "': no values");
+  return a;
+}
+
+std::vector<SweepAxis> read_grid(const fs::path& file) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(file.string());
+  } catch (const YAML::BadFile&) {
+    throw io::InputError(file.string() + ": cannot be read");
+  } catch (const YAML::Exception& e) {
+    throw io::InputError(file.string() + ":" + std::to_string(e.mark.line + 1) +
+                         ": not valid YAML: " + e.msg);
+  }
+  const auto where = [&](const YAML::Node& n) {
+    return file.string() + ":" + std::to_string(n.Mark().line + 1) + ": ";
+  };
+  if (!root.IsMap() || !root["axes"])
+    throw io::InputError(file.string() + ": expected a map with the key 'axes'");
+  for (const auto& kv : root)
+    if (kv.first.as<std::string>() != "axes")
+      throw io::InputError(where(kv.first) + kv.first.as<std::string>() +
+                           ": unknown key (expected axes)");
+  const YAML::Node axes = root["axes"];
+  if (!axes.IsSequence() || axes.size() == 0)
+    throw io::InputError(where(axes) + "axes: expected a non-empty list of {key: [values]}");
+  std::vector<SweepAxis> out;
+  for (const YAML::Node& item : axes) {
+    if (!item.IsMap() || item.size() != 1)
+      throw io::InputError(where(item) + "axes: each item is one key: [values]");
+    const auto kv = *item.begin();
+    SweepAxis a;
+    a.key = kv.first.as<std::string>();
+    if (!kv.second.IsSequence() || kv.second.size() == 0)
+      throw io::InputError(where(kv.second) + a.key + ": expected a non-empty list of values");
+    for (const YAML::Node& v : kv.second) {
+      if (!v.IsScalar())
+        throw io::InputError(where(v) + a.key + ": values must be scalars");
+      a.values.push_back(v.as<std::string>());
+    }
+    out.push_back(std::move(a));
+  }
+  return out;
+}
+
+void SweepSpec::validate() const {
+  if (axes.empty()) throw std::invalid_argument("sweep: no axis (give --axis or --grid)");
+  std::set<std::string> keys;
+  bool scene_axis = false;
+  for (const SweepAxis& a : axes) {
+    if (a.key.empty()) throw std::invalid_argument("sweep: an axis without a key");
+    if (a.key == "cell" || a.key == "mode" || a.key == "cell_seed")
+      throw std::invalid_argument("sweep: axis '" + a.key + "' clashes with a column name");
+    if (!keys.insert(a.key).second)
+      throw std::invalid_argument("sweep: axis '" + a.key + "' given twice");
+    if (a.values.empty()) throw std::invalid_argument("sweep: axis '" + a.key + "' has no values");
+    for (const std::string& v : a.values)
+      if (v.find_first_of("\",\n\r") != std::string::npos || v.empty())
+        throw std::invalid_argument("sweep: axis '" + a.key + "' value '" + v +
+                                    "': empty, or holds a quote, comma or line break");
+    scene_axis = scene_axis || a.key == "scene";
+  }
+  if (scene.empty() && !scene_axis)
+    throw std::invalid_argument("sweep: no scene (give --scene or an axis 'scene')");
+  std::set<TrackerMode> seen;
+  for (const TrackerMode m : modes)
+    if (!seen.insert(m).second)
+      throw std::invalid_argument("sweep: mode " + std::string(to_string(m)) + " given twice");
+  if (frames < 0)
+    throw std::invalid_argument("sweep: frames = " + std::to_string(frames) + ": must be >= 0");
+  double n = 1;
+  for (const SweepAxis& a : axes) n *= static_cast<double>(a.values.size());
+  if (n > static_cast<double>(kMaxSweepCells))
+    throw std::invalid_argument("sweep: " + num(n) + " cells: at most " +
+                                std::to_string(kMaxSweepCells));
+}
+
+std::size_t SweepSpec::cells() const {
+  std::size_t n = 1;
+  for (const SweepAxis& a : axes) n *= a.values.size();
+  return n;
+}
+
+SweepCell sweep_cell(const SweepSpec& spec, std::size_t index) {
+  if (index >= spec.cells())
+    throw std::invalid_argument("sweep: cell " + std::to_string(index) + " of " +
+                                std::to_string(spec.cells()));
+  SweepCell c;
+  c.index = index;
+  c.scene = spec.scene;
+  c.overrides = spec.set;
+  c.values.resize(spec.axes.size());
+  std::size_t rest = index;
+  for (std::size_t k = spec.axes.size(); k-- > 0;) {  // the last axis varies fastest
+    c.values[k] = spec.axes[k].values[rest % spec.axes[k].values.size()];
+    rest /= spec.axes[k].values.size();
+  }
+  std::string key;
+  bool seed_axis = false;
+  for (std::size_t k = 0; k < spec.axes.size(); ++k) {
+    const std::string& name = spec.axes[k].key;
+    key += name + "=" + c.values[k] + ";";
+    if (name == "scene") {
+      c.scene = c.values[k];
+    } else {
+      c.overrides.push_back(name + "=" + c.values[k]);
+      seed_axis = seed_axis || name == "seed";
+    }
+  }
+  const Scene scene = load_scene(c.scene, c.overrides);
+  c.seed = seed_axis ? scene.seed : derive_seed(scene.seed, std::string_view(key));
+  return c;
+}
+
+std::vector<std::string> sweep_columns(const SweepSpec& spec) {
+  std::vector<std::string> c = {"cell", "mode"};
+  for (const SweepAxis& a : spec.axes) c.push_back(a.key);
+  c.emplace_back("cell_seed");  // the seed the cell ran with
+  for (const char* m : kMetrics) c.emplace_back(m);
+  return c;
+}
+
+std::vector<std::string> sweep_timing_columns() { return {std::begin(kTiming), std::end(kTiming)}; }
+
+std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int threads) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const SweepCell cell = sweep_cell(spec, index);
+  Scene scene = load_scene(cell.scene, cell.overrides);
+  scene.seed = cell.seed;
+  EpisodeOptions o;
+  o.frames = spec.frames;
+  o.modes = spec.modes;
+  o.threads = threads;
+  Episode e(scene, o);
+  const std::size_t m = e.modes().size();
+  std::vector<long> non_finite(m, 0);
+  double occ_sum = 0, occ_max = 0;
+  while (e.done() < e.frames()) {
+    const EpisodeFrame& f = e.step();
+    occ_sum += f.image->link_occluded_fraction;
+    occ_max = std::max(occ_max, f.image->link_occluded_fraction);
+    for (std::size_t k = 0; k < m; ++k)
+      for (const Eigen::Vector3d& q : f.results[k].nodes) non_finite[k] += !q.allFinite();
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const std::vector<EpisodeSummary> sums = e.summaries();
+  std::vector<SweepRow> rows;
+  for (std::size_t k = 0; k < m; ++k) {
+    const EpisodeSummary& s = sums[k];
+    SweepRow r;
+    r.cell = index;
+    r.mode = k;
+    const std::string mode(to_string(e.modes()[k]));
+    r.values = {std::to_string(index), mode};
+    r.values.insert(r.values.end(), cell.values.begin(), cell.values.end());
+    int recovered = 0, recover_max = -1;
+    for (const Event& ev : s.events) {
+      if (ev.frames_to_recover < 0) continue;
+      ++recovered;
+      recover_max = std::max(recover_max, ev.frames_to_recover);
+    }
+    const std::vector<std::string> metrics = {
+        num(s.frames), num(s.lost_frames), mm(s.node_err.mean), mm(s.node_err.median),
+        mm(s.node_err.p95), mm(s.node_err.max), num(100 * s.under_2mm), num(100 * s.under_5mm),
+        mm(s.mean_sdf), mm(s.mean_polyline), num(s.swaps), num(s.swap_frames),
+        num(s.reinit_count), num(s.frames > 0 ? occ_sum / s.frames : std::nan("")),
+        num(occ_max), num(static_cast<int>(s.events.size())), num(recovered),
+        recover_max < 0 ? std::string("nan") : num(recover_max), num(non_finite[k])};
+    static_assert(std::size(kMetrics) == 19);
+    r.values.push_back(std::to_string(cell.seed));
+    r.values.insert(r.values.end(), metrics.begin(), metrics.end());
+    r.timing = {std::to_string(index), mode, num(s.time.mean * 1e3), num(s.time.p95 * 1e3),
+                num(s.time.max * 1e3), num(wall)};
+    rows.push_back(std::move(r));
+  }
+  return rows;
+}
+
+std::vector<std::size_t> shard_cells(const SweepSpec& spec, int shard, int count) {
+  if (count < 1 || shard < 0 || shard >= count)
+    throw std::invalid_argument("shard " + std::to_string(shard) + "/" + std::to_string(count) +
+                                ": expected 0 <= I < N");
+  std::vector<std::size_t> cells;
+  for (std::size_t i = static_cast<std::size_t>(shard); i < spec.cells();
+       i += static_cast<std::size_t>(count))
+    cells.push_back(i);
+  return cells;
+}
+
+std::string shard_file_name(int shard, int count) {
+  return "shard_" + std::to_string(shard) + "_of_" + std::to_string(count) + ".csv";
+}
+
+namespace {
+nlohmann::json manifest_json(const SweepSpec& spec) {
+  nlohmann::json j;
+  j["version"] = kManifestVersion;
+  j["scene"] = spec.scene.string();
+  j["axes"] = nlohmann::json::array();
+  for (const SweepAxis& a : spec.axes) j["axes"].push_back({{"key", a.key}, {"values", a.values}});
+  j["set"] = spec.set;
+  j["modes"] = nlohmann::json::array();
+  for (const TrackerMode m : spec.modes) j["modes"].push_back(std::string(to_string(m)));
+  j["frames"] = spec.frames;
+  j["cells"] = spec.cells();
+  return j;
+}
+}  // namespace
+
+void write_manifest(const fs::path& dir, const SweepSpec& spec) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir))
+    throw io::InputError(dir.string() + ": cannot create the sweep directory");
+  const fs::path path = dir / kManifest;
+  const nlohmann::json want = manifest_json(spec);
+  if (fs::exists(path)) {
+    const SweepSpec have = read_manifest(dir);
+    const nlohmann::json got = manifest_json(have);
+    for (const char* field : {"scene", "axes", "set", "modes", "frames"}) {
+      if (got[field] != want[field])
+        throw io::InputError(path.string() + " describes another sweep: " + field + " is " +
+                             got[field].dump() + ", this run has " + want[field].dump() +
+                             " (use another --out, or --force to start over)");
+    }
+    return;
+  }
+  io::write_file_atomic(path, [&](std::ostream& os) { os << want.dump(2) << "\n"; });
+}
+
+SweepSpec read_manifest(const fs::path& dir) {
+  const fs::path path = dir / kManifest;
+  std::ifstream in(path);
+  if (!in) throw io::InputError(path.string() + ": no sweep manifest here (not a sweep directory?)");
+  try {
+    const nlohmann::json j = nlohmann::json::parse(in);
+    if (j.at("version").get<int>() != kManifestVersion)
+      throw io::InputError(path.string() + ": version " + j.at("version").dump() +
+                           ", expected " + std::to_string(kManifestVersion));
+    SweepSpec s;
+    s.scene = j.at("scene").get<std::string>();
+    for (const auto& a : j.at("axes"))
+      s.axes.push_back({a.at("key").get<std::string>(),
+                        a.at("values").get<std::vector<std::string>>()});
+    s.set = j.at("set").get<std::vector<std::string>>();
+    for (const auto& m : j.at("modes")) s.modes.push_back(parse_mode(m.get<std::string>()));
+    s.frames = j.at("frames").get<int>();
+    s.validate();
+    if (j.at("cells").get<std::size_t>() != s.cells())
+      throw io::InputError(path.string() + ": cells " + j.at("cells").dump() +
+                           " does not match its axes (" + std::to_string(s.cells()) + ")");
+    return s;
+  } catch (const nlohmann::json::exception& e) {
+    throw io::InputError(path.string() + ": " + e.what());
+  } catch (const std::invalid_argument& e) {
+    throw io::InputError(path.string() + ": " + e.what());
+  }
+}
+
+void write_shard(const fs::path& dir, const SweepSpec& spec, int shard, int count,
+                 const std::vector<SweepRow>& rows) {
+  io::write_file_atomic(dir / shard_file_name(shard, count), [&](std::ostream& os) {
+    os << csv_line(shard_columns(spec));
+    for (const SweepRow& r : rows) {
+      std::vector<std::string> f = r.values;
+      f.insert(f.end(), r.timing.begin() + 2, r.timing.end());
+      os << csv_line(f);
+    }
+  });
+}
+
+bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int count) {
+  const fs::path path = dir / shard_file_name(shard, count);
+  if (!fs::exists(path)) return false;
+  try {
+    const ShardFile f = read_csv(path);
+    if (f.header != shard_columns(spec)) return false;
+    std::multiset<std::size_t> have;
+    for (const auto& row : f.rows) have.insert(parse_index(row[0], path));
+    std::multiset<std::size_t> want;
+    for (const std::size_t c : shard_cells(spec, shard, count))
+      for (std::size_t k = 0; k < spec.modes_per_cell(); ++k) want.insert(c);
+    return have == want;
+  } catch (const io::InputError&) {
+    return false;  // unreadable or torn: run it again
+  }
+}
+
+MergeResult merge_sweep(const fs::path& dir) {
+  const SweepSpec spec = read_manifest(dir);
+  const std::vector<std::string> header = shard_columns(spec);
+  const std::size_t n_det = sweep_columns(spec).size();
+  const std::size_t per_cell = spec.modes_per_cell();
+  std::vector<std::vector<std::vector<std::string>>> by_cell(spec.cells());
+  MergeResult result;
+  static const std::regex kShard(R"(shard_(\d+)_of_(\d+)\.csv)");
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(dir))
+    if (std::regex_match(entry.path().filename().string(), kShard)) files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  for (const fs::path& path : files) {
+    const ShardFile f = read_csv(path);
+    if (f.header != header)
+      throw io::InputError(path.string() + ": its columns differ from " +
+                           (dir / kManifest).string() + "'s sweep");
+    for (const auto& row : f.rows) {
+      const std::size_t cell = parse_index(row[0], path);
+      if (cell >= spec.cells())
+        throw io::InputError(path.string() + ": cell " + row[0] + " is beyond the grid's " +
+                             std::to_string(spec.cells()) + " cells");
+      by_cell[cell].push_back(row);
+    }
+    ++result.shard_files;
+  }
+  std::vector<std::size_t> missing, doubled;
+  for (std::size_t c = 0; c < by_cell.size(); ++c) {
+    auto& rows = by_cell[c];
+    std::set<std::string> modes;
+    for (const auto& r : rows) modes.insert(r[1]);
+    if (rows.size() > per_cell || modes.size() != rows.size()) {
+      doubled.push_back(c);
+    } else if (rows.size() < per_cell) {
+      missing.push_back(c);
+    }
+  }
+  if (!missing.empty() || !doubled.empty()) {
+    std::string msg = "sweep merge " + dir.string() + ": ";
+    if (!missing.empty())
+      msg += std::to_string(missing.size()) + " of " + std::to_string(spec.cells()) +
+             " cells missing (" + ranges(missing) + ")";
+    if (!doubled.empty())
+      msg += std::string(missing.empty() ? "" : "; ") + std::to_string(doubled.size()) +
+             " cells doubled (" + ranges(doubled) + ")";
+    msg += "; shard files read: " + std::to_string(files.size());
+    throw io::InputError(msg);
+  }
+  // Rows of a cell in the order of the manifest's modes (or its one mode).
+  std::vector<std::string> mode_order;
+  for (const TrackerMode m : spec.modes) mode_order.emplace_back(to_string(m));
+  io::StagedFiles out;
+  std::ostream& cells = out.open(dir / "cells.csv");
+  std::ostream& timing = out.open(dir / "cells_timing.csv");
+  cells << csv_line(sweep_columns(spec));
+  timing << csv_line(sweep_timing_columns());
+  for (auto& rows : by_cell) {
+    if (!mode_order.empty()) {
+      std::sort(rows.begin(), rows.end(), [&](const auto& a, const auto& b) {
+        return std::find(mode_order.begin(), mode_order.end(), a[1]) <
+               std::find(mode_order.begin(), mode_order.end(), b[1]);
+      });
+    }
+    for (const auto& r : rows) {
+      cells << csv_line({r.begin(), r.begin() + static_cast<long>(n_det)});
+      std::vector<std::string> t = {r[0], r[1]};
+      t.insert(t.end(), r.begin() + static_cast<long>(n_det), r.end());
+      timing << csv_line(t);
+      ++result.rows;
+    }
+  }
+  out.commit();
+  result.cells = spec.cells();
+  return result;
+}
+
+}  // namespace linksight::sim
