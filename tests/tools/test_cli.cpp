@@ -436,6 +436,62 @@ TEST_F(Cli, RunInterruptedKeepsCompletedFiles) {
   EXPECT_EQ(rows, done);  // one mode: a row per completed frame, none half-written
 }
 
+// linksight sweep: one process, then the same grid as a Slurm-style array of two shards
+// (by the array variables) merged by `sweep merge`: the same cells.csv byte for byte.
+TEST_F(Cli, SweepShardsByTheSlurmArrayAndMergesToTheSameTable) {
+  const std::string grid = "sweep --scene " + std::string(LINKSIGHT_SCENE_DIR) +
+                           "/static.yaml --axis noise.scale=0,2 --axis seed=3,4 --frames 2 "
+                           "--compare paper,paper-centred --quiet";
+  CliRun r = run(grid + " --out " + (dir / "one").string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* f : {"sweep.json", "shard_0_of_1.csv", "cells.csv", "cells_timing.csv",
+                        "figures/heatmap_node_err_mean_mm.png"})
+    EXPECT_TRUE(fs::exists(dir / "one" / f)) << f;
+  for (const char* task : {"1", "0"}) {
+    r = run(grid + " --no-figures --out " + (dir / "array").string(), dir,
+            std::string("SLURM_ARRAY_TASK_ID=") + task + " SLURM_ARRAY_TASK_COUNT=2");
+    ASSERT_EQ(r.code, 0) << r.err;
+  }
+  EXPECT_TRUE(fs::exists(dir / "array" / "shard_1_of_2.csv"));
+  EXPECT_FALSE(fs::exists(dir / "array" / "cells.csv")) << "shards do not merge by themselves";
+  r = run("sweep merge " + (dir / "array").string() + " --no-figures", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("merged 8 rows of 4 cells from 2 shard file(s)"), std::string::npos) << r.out;
+  auto slurp = [](const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  };
+  EXPECT_EQ(slurp(dir / "one" / "cells.csv"), slurp(dir / "array" / "cells.csv"));
+  // Resume: a complete shard is not run again.
+  const auto before = fs::last_write_time(dir / "array" / "shard_0_of_2.csv");
+  r = run(grid.substr(0, grid.size() - 8) + " --shard 0/2 --out " + (dir / "array").string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("shard 0/2 is complete"), std::string::npos) << r.out;
+  EXPECT_EQ(fs::last_write_time(dir / "array" / "shard_0_of_2.csv"), before);
+}
+
+TEST_F(Cli, SweepBadInputIsNamed) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  auto bad = [&](const std::string& args, const std::string& names) {
+    const CliRun r = run("sweep " + args + " --out " + out.string(), dir);
+    EXPECT_EQ(r.code, 2) << args << ": " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out / "cells.csv")) << args;
+  };
+  bad("--scene " + scene + " --axis noise.scale", "--axis 'noise.scale': expected key=v1,v2");
+  bad("--scene " + scene, "no axis");
+  bad("--scene " + scene + " --axis noise.scale=1 --shard 2/2", "--shard '2/2'");
+  bad("--scene " + scene + " --axis noise.scael=1", "noise.scael: unknown key");
+  bad("--scene " + scene + " --axis noise.scale=1 --compare paper,fast", "--compare");
+  bad("--axis noise.scale=1", "no scene");
+  const CliRun r = run("sweep merge " + (dir / "nothing").string(), dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no sweep manifest"), std::string::npos) << r.err;
+}
+
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
   const std::string input = std::string(LINKSIGHT_TEST_DATA_DIR) + "/sr305/100.png";
   const CliRun r = run(

@@ -1,0 +1,197 @@
+// Sweeps: grid enumeration, per-cell seeds, shards, merge and its completeness check.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "linksight/io/error.hpp"
+#include "linksight/sim/sweep.hpp"
+#include "test_support.hpp"
+
+namespace linksight::sim {
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kScenes = LINKSIGHT_SCENE_DIR;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+// A tiny grid: 3 x 2 cells of 2 frames, two modes per cell.
+SweepSpec tiny() {
+  SweepSpec s;
+  s.scene = kScenes / "static.yaml";
+  s.axes = {parse_axis("noise.scale=0,1,2"), parse_axis("tracker.iterations=2,4")};
+  s.modes = {TrackerMode::paper, TrackerMode::paper_centred};
+  s.frames = 2;
+  return s;
+}
+
+class Sweep : public ::testing::Test {
+ protected:
+  fs::path dir =
+      test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  // Runs shard i of n into `d` as the CLI does.
+  static void run_shard(const fs::path& d, const SweepSpec& spec, int i, int n) {
+    write_manifest(d, spec);
+    std::vector<SweepRow> rows;
+    for (const std::size_t c : shard_cells(spec, i, n))
+      for (SweepRow& r : run_cell(spec, c, 0)) rows.push_back(std::move(r));
+    write_shard(d, spec, i, n, rows);
+  }
+};
+
+TEST(SweepAxis, ParsesAndNamesBadArguments) {
+  const SweepAxis a = parse_axis("noise.scale= 0, 0.5,1");
+  EXPECT_EQ(a.key, "noise.scale");
+  EXPECT_EQ(a.values, (std::vector<std::string>{"0", "0.5", "1"}));
+  EXPECT_EQ(error_of([] { (void)parse_axis("noise.scale"); }),
+            "--axis 'noise.scale': expected key=v1,v2,...");
+  EXPECT_EQ(error_of([] { (void)parse_axis("noise.scale=1,,2"); }),
+            "--axis 'noise.scale=1,,2': empty value");
+  EXPECT_EQ(error_of([] { (void)parse_axis("=1"); }), "--axis '=1': expected key=v1,v2,...");
+}
+
+TEST(SweepSpec, ValidateNamesTheProblem) {
+  SweepSpec s = tiny();
+  s.axes.push_back(parse_axis("noise.scale=3"));
+  EXPECT_EQ(error_of([&] { s.validate(); }), "sweep: axis 'noise.scale' given twice");
+  s = tiny();
+  s.axes.clear();
+  EXPECT_EQ(error_of([&] { s.validate(); }), "sweep: no axis (give --axis or --grid)");
+  s = tiny();
+  s.scene.clear();
+  EXPECT_EQ(error_of([&] { s.validate(); }), "sweep: no scene (give --scene or an axis 'scene')");
+  s = tiny();
+  s.axes = {parse_axis("seed=1,2"), parse_axis("mode=paper")};
+  EXPECT_EQ(error_of([&] { s.validate(); }), "sweep: axis 'mode' clashes with a column name");
+  s = tiny();
+  s.axes = {parse_axis("a=1,2,3,4,5,6,7,8,9,10"), parse_axis("b=1,2,3,4,5,6,7,8,9,10"),
+            parse_axis("c=1,2,3,4,5,6,7,8,9,10"), parse_axis("d=1,2,3,4,5,6,7,8,9,10"),
+            parse_axis("e=1,2,3,4,5,6,7,8,9,10"), parse_axis("f=1,2,3,4,5,6,7,8,9,10,11")};
+  EXPECT_NE(error_of([&] { s.validate(); }).find("at most 1000000"), std::string::npos);
+}
+
+TEST(SweepCell, RowMajorOverridesAndSeedsFromTheCellsValues) {
+  const SweepSpec s = tiny();
+  ASSERT_EQ(s.cells(), 6u);
+  const SweepCell c = sweep_cell(s, 3);  // noise.scale index 1, iterations index 1
+  EXPECT_EQ(c.values, (std::vector<std::string>{"1", "4"}));
+  EXPECT_EQ(c.overrides, (std::vector<std::string>{"noise.scale=1", "tracker.iterations=4"}));
+  // The seed depends on the values, not on the index or the rest of the grid: the same
+  // values in another grid get the same seed; other values get another.
+  SweepSpec other = s;
+  other.axes = {parse_axis("noise.scale=1,5"), parse_axis("tracker.iterations=4")};
+  EXPECT_EQ(sweep_cell(other, 0).seed, c.seed);
+  EXPECT_NE(sweep_cell(s, 2).seed, c.seed);
+  EXPECT_NE(sweep_cell(s, 1).seed, sweep_cell(s, 0).seed);
+  // A seed axis is the seed.
+  SweepSpec seeded = s;
+  seeded.axes.push_back(parse_axis("seed=17,18"));
+  EXPECT_EQ(sweep_cell(seeded, 1).seed, 18u);
+  EXPECT_THROW((void)sweep_cell(s, 6), std::invalid_argument);
+}
+
+TEST(SweepGrid, ReadsAxesAndNamesTheLineOfAProblem) {
+  const fs::path d = test::scratch_dir("SweepGrid");
+  std::ofstream(d / "grid.yaml") << "axes:\n  - noise.scale: [0, 0.5]\n  - seed: [1, 2, 3]\n";
+  const auto axes = read_grid(d / "grid.yaml");
+  ASSERT_EQ(axes.size(), 2u);
+  EXPECT_EQ(axes[1].key, "seed");
+  EXPECT_EQ(axes[1].values, (std::vector<std::string>{"1", "2", "3"}));
+  std::ofstream(d / "bad.yaml") << "axes:\n  - noise.scale: [0, 0.5]\n  - seed: 3\n";
+  EXPECT_EQ(error_of([&] { (void)read_grid(d / "bad.yaml"); }),
+            (d / "bad.yaml").string() + ":3: seed: expected a non-empty list of values");
+  std::ofstream(d / "typo.yaml") << "axis:\n  - seed: [1]\n";
+  EXPECT_NE(error_of([&] { (void)read_grid(d / "typo.yaml"); }).find("'axes'"), std::string::npos);
+  EXPECT_NE(error_of([&] { (void)read_grid(d / "none.yaml"); }).find("cannot be read"),
+            std::string::npos);
+}
+
+// The point of sharding: shards run anywhere, in any order, merge into exactly the table
+// one process writes.
+TEST_F(Sweep, MergedShardsEqualOneProcessByteForByte) {
+  const SweepSpec spec = tiny();
+  run_shard(dir / "whole", spec, 0, 1);
+  const MergeResult whole = merge_sweep(dir / "whole");
+  EXPECT_EQ(whole.cells, 6u);
+  EXPECT_EQ(whole.rows, 12u);
+  for (const int i : {2, 0, 1}) run_shard(dir / "sharded", spec, i, 3);
+  const MergeResult merged = merge_sweep(dir / "sharded");
+  EXPECT_EQ(merged.shard_files, 3u);
+  const std::string cells = slurp(dir / "whole" / "cells.csv");
+  EXPECT_EQ(cells, slurp(dir / "sharded" / "cells.csv"));
+  // The table is the grid: header, then cell 0 paper, cell 0 paper-centred, ...
+  std::istringstream lines(cells);
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line.rfind("cell,mode,noise.scale,tracker.iterations,cell_seed,frames,", 0), 0u);
+  std::getline(lines, line);
+  EXPECT_EQ(line.rfind("0,paper,0,2,", 0), 0u) << line;
+  std::getline(lines, line);
+  EXPECT_EQ(line.rfind("0,paper-centred,0,2,", 0), 0u) << line;
+  EXPECT_EQ(cells.find("time_ms"), std::string::npos) << "timing belongs in cells_timing.csv";
+  const std::string timing = slurp(dir / "sharded" / "cells_timing.csv");
+  EXPECT_EQ(timing.rfind("cell,mode,time_ms_mean,", 0), 0u);
+  EXPECT_EQ(std::count(timing.begin(), timing.end(), '\n'), 13);
+}
+
+TEST_F(Sweep, MergeNamesMissingAndDoubledCells) {
+  const SweepSpec spec = tiny();
+  run_shard(dir, spec, 0, 3);  // cells 0, 3
+  run_shard(dir, spec, 1, 3);  // cells 1, 4
+  std::string e = error_of([&] { (void)merge_sweep(dir); });
+  EXPECT_NE(e.find("2 of 6 cells missing (2, 5)"), std::string::npos) << e;
+  EXPECT_FALSE(fs::exists(dir / "cells.csv"));
+  run_shard(dir, spec, 2, 3);
+  run_shard(dir, spec, 0, 2);  // cells 0, 2, 4 again
+  e = error_of([&] { (void)merge_sweep(dir); });
+  EXPECT_NE(e.find("3 cells doubled (0, 2, 4)"), std::string::npos) << e;
+  EXPECT_FALSE(fs::exists(dir / "cells.csv"));
+  fs::remove(dir / shard_file_name(0, 2));
+  EXPECT_NO_THROW((void)merge_sweep(dir));
+  EXPECT_NE(error_of([&] { (void)merge_sweep(dir / "nothing"); }).find("no sweep manifest"),
+            std::string::npos);
+}
+
+TEST_F(Sweep, CompleteShardsAreRecognizedAndOthersAreNot) {
+  const SweepSpec spec = tiny();
+  EXPECT_FALSE(shard_complete(dir, spec, 0, 2));
+  run_shard(dir, spec, 0, 2);
+  EXPECT_TRUE(shard_complete(dir, spec, 0, 2));
+  EXPECT_FALSE(shard_complete(dir, spec, 1, 2));
+  // A torn or foreign file is not complete: the re-run redoes it.
+  const fs::path f = dir / shard_file_name(0, 2);
+  const std::string text = slurp(f);
+  std::ofstream(f) << text.substr(0, text.size() / 2);
+  EXPECT_FALSE(shard_complete(dir, spec, 0, 2));
+  // Another grid in the same directory is refused, naming what differs.
+  SweepSpec other = spec;
+  other.frames = 3;
+  const std::string e = error_of([&] { write_manifest(dir, other); });
+  EXPECT_NE(e.find("describes another sweep: frames is 2, this run has 3"), std::string::npos) << e;
+}
+
+TEST_F(Sweep, BadSceneKeysInACellAreNamed) {
+  SweepSpec spec = tiny();
+  spec.axes = {parse_axis("noise.scael=1,2")};
+  const std::string e = error_of([&] { (void)run_cell(spec, 0, 0); });
+  EXPECT_NE(e.find("--set noise.scael=1: noise.scael: unknown key"), std::string::npos) << e;
+}
+
+}  // namespace
+}  // namespace linksight::sim
