@@ -8,7 +8,6 @@
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <regex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -132,6 +131,23 @@ std::string ranges(const std::vector<std::size_t>& v, std::size_t limit = 8) {
   }
   if (runs > limit) s += " and " + std::to_string(runs - limit) + " more runs";
   return s;
+}
+
+// "shard_<digits>_of_<digits>.csv"
+bool is_shard_file_name(const std::string& name) {
+  const auto digits = [&](std::size_t& at) {
+    const std::size_t from = at;
+    while (at < name.size() && name[at] >= '0' && name[at] <= '9') ++at;
+    return at > from;
+  };
+  std::size_t at = 0;
+  const auto literal = [&](std::string_view lit) {
+    if (name.compare(at, lit.size(), lit) != 0) return false;
+    at += lit.size();
+    return true;
+  };
+  return literal("shard_") && digits(at) && literal("_of_") && digits(at) && literal(".csv") &&
+         at == name.size();
 }
 
 }  // namespace
@@ -441,10 +457,9 @@ MergeResult merge_sweep(const fs::path& dir) {
   const std::size_t per_cell = spec.modes_per_cell();
   std::vector<std::vector<std::vector<std::string>>> by_cell(spec.cells());
   MergeResult result;
-  static const std::regex kShard(R"(shard_(\d+)_of_(\d+)\.csv)");
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(dir))
-    if (std::regex_match(entry.path().filename().string(), kShard)) files.push_back(entry.path());
+    if (is_shard_file_name(entry.path().filename().string())) files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   for (const fs::path& path : files) {
     const ShardFile f = read_csv(path);
