@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
 #include "format.hpp"
 #include "linksight/io/atomic_file.hpp"
@@ -47,32 +48,12 @@ struct RunOptions {
   bool quiet = false;
 };
 
-std::vector<TrackerMode> parse_modes(const std::string& list) {
-  std::vector<TrackerMode> modes;
-  std::stringstream ss(list);
-  for (std::string item; std::getline(ss, item, ',');) {
-    if (item.empty()) throw std::invalid_argument("--compare '" + list + "': empty mode name");
-    try {
-      modes.push_back(parse_mode(item));
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("--compare: ") + e.what());
-    }
-  }
-  return modes;
-}
-
 // Statistics in report units (`unit` per SI unit: 1e3 for mm or ms).
 nlohmann::json stats_json(const sim::Stats& s, double unit) {
   return {{"mean", json_number(s.mean * unit)},
           {"median", json_number(s.median * unit)},
           {"p95", json_number(s.p95 * unit)},
           {"max", json_number(s.max * unit)}};
-}
-
-// The plotting script: $LINKSIGHT_PLOT_SCRIPT, else the one in the source tree.
-fs::path plot_script() {
-  if (const char* env = std::getenv("LINKSIGHT_PLOT_SCRIPT")) return env;
-  return LINKSIGHT_PLOT_SCRIPT;
 }
 
 // A progress bar on a terminal: frames done, rate, time left.
@@ -98,7 +79,7 @@ int run_run(const RunOptions& o) {
   sim::EpisodeOptions eo;
   eo.frames = o.frames;
   eo.threads = o.threads;
-  if (!o.compare.empty()) eo.modes = parse_modes(o.compare);
+  if (!o.compare.empty()) eo.modes = parse_compare(o.compare);
   sim::Episode episode(scene, eo);  // a missing mesh fails here, before any output
   const fs::path out = o.out.empty() ? fs::path("out/run") / fs::path(o.scene).stem() : fs::path(o.out);
   io::StagedDir dir(out, o.force);
@@ -239,18 +220,8 @@ int run_run(const RunOptions& o) {
   // Figures: matplotlib via tools/plot_run.py, into the staged directory.
   std::string figures_note;
   if (o.figures && done > 0) {
-    const fs::path script = plot_script();
-    std::error_code ec;
-    // Debian's interpreter first: python3-matplotlib is installed for it, and a python3
-    // earlier in PATH (a virtualenv, pyenv) may lack it.
-    const std::string python = fs::exists("/usr/bin/python3", ec) ? "/usr/bin/python3" : "python3";
-    const std::string cmd = python + " '" + script.string() + "' '" + stage.string() + "'" +
-                            (o.quiet ? " >/dev/null" : "") + " 2>&1";
-    if (!fs::is_regular_file(script, ec)) {
-      figures_note = "no figures: " + script.string() + " not found";
-    } else if (std::system(cmd.c_str()) != 0) {
-      figures_note = "no figures: " + script.string() + " failed (is python3-matplotlib installed?)";
-    }
+    figures_note = run_plot_script(script_path("LINKSIGHT_PLOT_SCRIPT", LINKSIGHT_PLOT_SCRIPT),
+                                   stage, o.quiet);
   }
   dir.commit();
 

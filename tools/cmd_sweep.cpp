@@ -10,8 +10,8 @@
 #include <cstdlib>
 #include <iostream>
 #include <memory>
-#include <sstream>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
 #include "format.hpp"
 #include "linksight/io/error.hpp"
@@ -90,18 +90,6 @@ void progress(std::size_t done, std::size_t total, double elapsed_s, int shard, 
   std::cerr << std::flush;
 }
 
-int plot(const fs::path& dir) {
-  const char* py = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
-  const std::string cmd = std::string(py) + " '" + LINKSIGHT_SWEEP_PLOT_SCRIPT + "' '" +
-                          dir.string() + "'";
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0) {
-    std::cerr << "linksight: the heatmaps failed (" << cmd << "); cells.csv is complete\n";
-    return kExitInternal;
-  }
-  return kExitOk;
-}
-
 int merge_and_report(const fs::path& dir, bool figures, bool quiet) {
   const sim::MergeResult m = sim::merge_sweep(dir);
   if (!quiet)
@@ -109,25 +97,15 @@ int merge_and_report(const fs::path& dir, bool figures, bool quiet) {
               << " shard file(s): " << (dir / "cells.csv").string() << ", "
               << (dir / "cells_timing.csv").string() << "\n";
   if (figures) {
-    const int rc = plot(dir);
-    if (rc != kExitOk) return rc;
-    if (!quiet) std::cout << "heatmaps: " << (dir / "figures").string() << "/\n";
-  }
-  return kExitOk;
-}
-
-std::vector<TrackerMode> parse_modes(const std::string& list) {
-  std::vector<TrackerMode> modes;
-  if (list.empty()) return modes;
-  std::stringstream ss(list);
-  for (std::string item; std::getline(ss, item, ',');) {
-    try {
-      modes.push_back(parse_mode(item));
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("--compare: ") + e.what());
+    const std::string note = run_plot_script(
+        script_path("LINKSIGHT_SWEEP_PLOT_SCRIPT", LINKSIGHT_SWEEP_PLOT_SCRIPT), dir, quiet);
+    if (!note.empty()) {
+      std::cerr << "linksight: warning: " << note << "\n";
+    } else if (!quiet) {
+      std::cout << "heatmaps: " << (dir / "figures").string() << "/\n";
     }
   }
-  return modes;
+  return kExitOk;
 }
 
 int run_sweep(const SweepOptions& o) {
@@ -139,7 +117,7 @@ int run_sweep(const SweepOptions& o) {
   if (!o.grid.empty()) spec.axes = sim::read_grid(o.grid);
   for (const std::string& a : o.axes) spec.axes.push_back(sim::parse_axis(a));
   spec.set = o.set;
-  spec.modes = parse_modes(o.compare);
+  spec.modes = parse_compare(o.compare);
   spec.frames = o.frames;
   spec.validate();
   const auto [shard, count] = which_shard(o.shard);

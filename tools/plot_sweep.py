@@ -42,13 +42,8 @@ def main(directory):
     with open(os.path.join(directory, "cells.csv")) as f:
         rows = list(csv.DictReader(f))
     axes = [a for a in manifest["axes"] if a["key"] != "tracker.mode"]
-    modes = []
-    for r in rows:
-        mode = r["mode"]
-        if "tracker.mode" in r:
-            mode = r["tracker.mode"]
-        if mode not in modes:
-            modes.append(mode)
+    # The mode column is the mode that ran, whether from --compare or a tracker.mode axis.
+    modes = list(dict.fromkeys(r["mode"] for r in rows))
     x_axis = axes[0] if axes else None
     y_axis = axes[1] if len(axes) > 1 else None
     xs = x_axis["values"] if x_axis else ["all"]
@@ -63,7 +58,7 @@ def main(directory):
             sums = [[0.0] * len(xs) for _ in ys]
             counts = [[0] * len(xs) for _ in ys]
             for r in rows:
-                if (r.get("tracker.mode", r["mode"])) != mode:
+                if r["mode"] != mode:
                     continue
                 xi = xs.index(r[x_axis["key"]]) if x_axis else 0
                 yi = ys.index(r[y_axis["key"]]) if y_axis else 0

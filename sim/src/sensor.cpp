@@ -152,12 +152,6 @@ struct Caster {
   static Caster of(const Eigen::AlignedBox3d& box_W, const Eigen::Matrix3d& R_WP,
                    const Eigen::Vector3d& p_WP) {
     Caster c;
-    if (box_W.isEmpty()) {  // nothing to cast a shadow
-      c.everywhere = false;
-      c.x0 = c.y0 = std::numeric_limits<float>::infinity();
-      c.x1 = c.y1 = -c.x0;
-      return c;
-    }
     double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
     for (int k = 0; k < 8; ++k) {
       const Eigen::Vector3d q =
@@ -307,6 +301,7 @@ struct Sensor::Impl {
   std::vector<Eigen::AlignedBox3d> static_box;
   std::vector<float> static_reflectance;
   std::vector<bool> static_convex;
+  std::vector<Caster> static_casters;  // the background's, from the fixed projector pose
   // Per-pixel scratch, kept between frames.
   std::vector<float> cos_c, cos_p, reflect;
   std::vector<std::uint8_t> lit, hole, label_no_occluders;
@@ -469,6 +464,11 @@ Sensor::Sensor(const SensorParams& params, const ComponentGeometry& geometry,
     m.static_reflectance[id] = static_cast<float>(background[k].reflectance);
     m.static_convex[id] = background[k].shape.kind != Shape::Kind::mesh;
   }
+  // The camera and the projector do not move: the background's silhouettes are set-up.
+  const Eigen::Vector3d P_W =
+      params.camera.X_WC * Eigen::Vector3d(params.noise.shadow.baseline, 0, 0);
+  for (const Eigen::AlignedBox3d& box : m.static_box)
+    m.static_casters.push_back(Caster::of(box, params.camera.X_WC.linear(), P_W));
   rtcCommitScene(m.top);
   rtcCommitScene(m.statics);
   m.check("scene");
@@ -582,7 +582,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   // Shadow culling: a shadow ray from p to the projector can be blocked by a body only if
   // p lies inside the body's silhouette seen from the projector and farther than the body.
   const Eigen::Matrix3f R_CW_f = R_WC_f.transpose();
-  std::vector<Caster> moving_casters(moving_W.size()), static_casters(m.static_box.size());
+  std::vector<Caster> moving_casters(moving_W.size());
+  const std::vector<Caster>& static_casters = m.static_casters;
   if (m.p.cull) {
     Eigen::AlignedBox3d all_W;
     for (std::size_t k = 0; k < moving_W.size(); ++k) {
@@ -590,10 +591,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       moving_casters[k] = Caster::of(moving_W[k], R_WC, P_W);
       all_W.extend(moving_W[k]);
     }
-    for (std::size_t k = 0; k < m.static_box.size(); ++k) {
-      static_casters[k] = Caster::of(m.static_box[k], R_WC, P_W);
-      all_W.extend(m.static_box[k]);
-    }
+    for (const Eigen::AlignedBox3d& box : m.static_box) all_W.extend(box);
     scene_rect = reachable(all_W.min(), all_W.max(), m.p.camera.X_WC, K, margin_px);
   }
   const PixelRect& chain_rect = moving_rect[0];

@@ -245,7 +245,10 @@ std::size_t SweepSpec::cells() const {
   return n;
 }
 
-SweepCell sweep_cell(const SweepSpec& spec, std::size_t index) {
+namespace {
+// The cell and its loaded scene (seed set to the cell's): run_cell needs both, and a scene
+// file is parsed once per cell.
+std::pair<SweepCell, Scene> load_cell(const SweepSpec& spec, std::size_t index) {
   if (index >= spec.cells())
     throw std::invalid_argument("sweep: cell " + std::to_string(index) + " of " +
                                 std::to_string(spec.cells()));
@@ -271,9 +274,15 @@ SweepCell sweep_cell(const SweepSpec& spec, std::size_t index) {
       seed_axis = seed_axis || name == "seed";
     }
   }
-  const Scene scene = load_scene(c.scene, c.overrides);
+  Scene scene = load_scene(c.scene, c.overrides);
   c.seed = seed_axis ? scene.seed : derive_seed(scene.seed, std::string_view(key));
-  return c;
+  scene.seed = c.seed;
+  return {std::move(c), std::move(scene)};
+}
+}  // namespace
+
+SweepCell sweep_cell(const SweepSpec& spec, std::size_t index) {
+  return load_cell(spec, index).first;
 }
 
 std::vector<std::string> sweep_columns(const SweepSpec& spec) {
@@ -288,9 +297,7 @@ std::vector<std::string> sweep_timing_columns() { return {std::begin(kTiming), s
 
 std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int threads) {
   const auto t0 = std::chrono::steady_clock::now();
-  const SweepCell cell = sweep_cell(spec, index);
-  Scene scene = load_scene(cell.scene, cell.overrides);
-  scene.seed = cell.seed;
+  const auto [cell, scene] = load_cell(spec, index);
   EpisodeOptions o;
   o.frames = spec.frames;
   o.modes = spec.modes;

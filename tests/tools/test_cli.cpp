@@ -441,14 +441,14 @@ TEST_F(Cli, RunInterruptedKeepsCompletedFiles) {
 TEST_F(Cli, SweepShardsByTheSlurmArrayAndMergesToTheSameTable) {
   const std::string grid = "sweep --scene " + std::string(LINKSIGHT_SCENE_DIR) +
                            "/static.yaml --axis noise.scale=0,2 --axis seed=3,4 --frames 2 "
-                           "--compare paper,paper-centred --quiet";
-  CliRun r = run(grid + " --out " + (dir / "one").string(), dir);
+                           "--compare paper,paper-centred";
+  CliRun r = run(grid + " --quiet --out " + (dir / "one").string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* f : {"sweep.json", "shard_0_of_1.csv", "cells.csv", "cells_timing.csv",
                         "figures/heatmap_node_err_mean_mm.png"})
     EXPECT_TRUE(fs::exists(dir / "one" / f)) << f;
   for (const char* task : {"1", "0"}) {
-    r = run(grid + " --no-figures --out " + (dir / "array").string(), dir,
+    r = run(grid + " --quiet --no-figures --out " + (dir / "array").string(), dir,
             std::string("SLURM_ARRAY_TASK_ID=") + task + " SLURM_ARRAY_TASK_COUNT=2");
     ASSERT_EQ(r.code, 0) << r.err;
   }
@@ -466,7 +466,7 @@ TEST_F(Cli, SweepShardsByTheSlurmArrayAndMergesToTheSameTable) {
   EXPECT_EQ(slurp(dir / "one" / "cells.csv"), slurp(dir / "array" / "cells.csv"));
   // Resume: a complete shard is not run again.
   const auto before = fs::last_write_time(dir / "array" / "shard_0_of_2.csv");
-  r = run(grid.substr(0, grid.size() - 8) + " --shard 0/2 --out " + (dir / "array").string(), dir);
+  r = run(grid + " --shard 0/2 --out " + (dir / "array").string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("shard 0/2 is complete"), std::string::npos) << r.out;
   EXPECT_EQ(fs::last_write_time(dir / "array" / "shard_0_of_2.csv"), before);

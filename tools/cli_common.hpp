@@ -1,0 +1,54 @@
+#pragma once
+// Pieces that more than one subcommand needs: the --compare list and the plotting scripts.
+
+#include <cstdlib>
+#include <filesystem>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "linksight/tracker/tracker.hpp"
+
+namespace linksight::cli {
+
+/// "paper,paper-centred" -> modes; errors name --compare and the bad item.
+inline std::vector<TrackerMode> parse_compare(const std::string& list) {
+  std::vector<TrackerMode> modes;
+  std::stringstream ss(list);
+  for (std::string item; std::getline(ss, item, ',');) {
+    if (item.empty()) throw std::invalid_argument("--compare '" + list + "': empty mode name");
+    try {
+      modes.push_back(parse_mode(item));
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("--compare: ") + e.what());
+    }
+  }
+  return modes;
+}
+
+/// `env`'s value if set, else the script in the source tree.
+inline std::filesystem::path script_path(const char* env, const char* built_in) {
+  if (const char* v = std::getenv(env)) return v;
+  return built_in;
+}
+
+/// Runs `python3 SCRIPT DIR`; "" when it worked, else a note saying why there are no
+/// figures (the data files are complete either way).
+inline std::string run_plot_script(const std::filesystem::path& script,
+                                   const std::filesystem::path& dir, bool quiet) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(script, ec))
+    return "no figures: " + script.string() + " not found";
+  // Debian's interpreter first: python3-matplotlib is installed for it, and a python3
+  // earlier in PATH (a virtualenv, pyenv) may lack it.
+  const std::string python =
+      std::filesystem::exists("/usr/bin/python3", ec) ? "/usr/bin/python3" : "python3";
+  const std::string cmd = python + " '" + script.string() + "' '" + dir.string() + "'" +
+                          (quiet ? " >/dev/null" : "") + " 2>&1";
+  if (std::system(cmd.c_str()) != 0)
+    return "no figures: " + script.string() + " failed (is python3-matplotlib installed?)";
+  return "";
+}
+
+}  // namespace linksight::cli
