@@ -208,6 +208,7 @@ int run_run(const RunOptions& o) {
         {"reinit_count", s.reinit_count},
         {"swaps", s.swaps},
         {"swap_frames", s.swap_frames},
+        {"misassigned_nodes", s.misassigned},
         {"time_ms", stats_json(s.time, 1e3)},
         {"events", events},
     };

@@ -1,5 +1,7 @@
 #include "linksight/sim/scene.hpp"
 
+#include "linksight/sim/occlusion.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -493,7 +495,7 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
   std::vector<Override> applied;
   for (const std::string& o : overrides) applied.push_back(apply_override(file, root, o));
   const Reader r(file, applied);
-  r.only(root, "", {"duration_s", "seed", "camera", "noise", "occluders", "background",
+  r.only(root, "", {"duration_s", "seed", "camera", "noise", "occluders", "occlusion", "background",
                     "segmentation", "chain", "world", "base", "actions", "tracker"});
   const std::filesystem::path base = path.parent_path();
   Scene s;
@@ -509,11 +511,14 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
       r.fail(o, "occluders", "at most " + std::to_string(kMaxOccluders));
     for (std::size_t i = 0; i < o.size(); ++i) {
       const std::string at = "occluders[" + std::to_string(i) + "]";
-      r.only(o[i], at, with(kShapeKeys, {"path"}));
+      r.only(o[i], at, with(kShapeKeys, {"path", "from_s", "to_s"}));
       Occluder oc;
       oc.shape = r.shape(o[i], at, base);
       oc.reflectance = r.number(o[i], at, "reflectance", 1.0, 0, 10);
       if (const YAML::Node route = o[i]["path"]) oc.path = r.trajectory(route, at + ".path");
+      oc.from_s = r.number(o[i], at, "from_s", 0.0, 0.0, 1e6);
+      if (o[i]["to_s"]) oc.to_s = r.number(o[i], at, "to_s", 0.0, oc.from_s + 1e-9, 1e6);
+      if (!o[i]["from_s"]) oc.from_s = -std::numeric_limits<double>::infinity();
       s.occluders.push_back(oc);
     }
   }
@@ -588,6 +593,29 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
           r.fail(o[i]["half_extents_m"], at + ".half_extents_m", "must all be > 0");
         op.X_WO = r.pose(o[i], at);
         s.obstacles.push_back(op);
+      }
+    }
+  }
+  if (const YAML::Node o = root["occlusion"]) {
+    r.only(o, "occlusion", {"fraction", "at", "from_s", "to_s", "gap_m", "height_m", "follow_base"});
+    ScreenOcclusion& so = s.occlusion;
+    so.fraction = r.number(o, "occlusion", "fraction", so.fraction, 0.0, 0.95);
+    so.at = r.choice(o, "occlusion", "at", "middle", {"middle", "tip"}) == "tip"
+                ? ScreenOcclusion::Where::tip
+                : ScreenOcclusion::Where::middle;
+    so.from_s = r.number(o, "occlusion", "from_s", so.from_s, 0.0, 1e6);
+    so.to_s = r.number(o, "occlusion", "to_s", so.to_s, so.from_s + 1e-9, 1e6);
+    so.gap = r.number(o, "occlusion", "gap_m", so.gap, 1e-3, 0.5);
+    so.height = r.number(o, "occlusion", "height_m", so.height, 1e-3, 0.5);
+    so.follow_base = r.boolean(o, "occlusion", "follow_base", so.follow_base);
+    if (so.fraction > 0) {
+      if (s.occluders.size() >= static_cast<std::size_t>(kMaxOccluders))
+        r.fail(o, "occlusion", "at most " + std::to_string(kMaxOccluders) + " occluders in all");
+      try {
+        s.occluders.push_back(
+            screen_occluder(so, s.chain.geometry, s.base, s.camera, s.duration_s));
+      } catch (const std::invalid_argument& e) {
+        r.fail(o, "occlusion", e.what());
       }
     }
   }

@@ -28,16 +28,35 @@ double bidirectional_polyline_distance(const Nodes& a, const Nodes& b) {
   return 0.5 * (ab / static_cast<double>(a.size()) + ba / static_cast<double>(b.size()));
 }
 
+namespace {
+// For each estimated ball node, the index of its nearest true ball. The tip (last node)
+// has no ball under it: the SOM places it on the last ball's far cap, nearer true ball
+// M-1 than the true tip, which is neither a change of order nor a wrong ball.
+std::vector<std::size_t> nearest_balls(const Nodes& estimate, const Nodes& truth) {
+  const std::size_t balls = std::min(estimate.size(), truth.size()) - (truth.empty() ? 0 : 1);
+  std::vector<std::size_t> nearest(balls, 0);
+  for (std::size_t j = 0; j < balls; ++j)
+    for (std::size_t k = 1; k < balls; ++k)
+      if ((estimate[j] - truth[k]).squaredNorm() <
+          (estimate[j] - truth[nearest[j]]).squaredNorm())
+        nearest[j] = k;
+  return nearest;
+}
+}  // namespace
+
 int topology_swaps(const Nodes& estimate, const Nodes& truth) {
+  const std::vector<std::size_t> nearest = nearest_balls(estimate, truth);
   int swaps = 0;
-  for (std::size_t j = 0; j < estimate.size(); ++j) {
-    std::size_t nearest = 0;
-    for (std::size_t k = 1; k < truth.size(); ++k)
-      if ((estimate[j] - truth[k]).squaredNorm() < (estimate[j] - truth[nearest]).squaredNorm())
-        nearest = k;
-    swaps += nearest != j;
-  }
+  for (std::size_t j = 0; j < nearest.size(); ++j)
+    for (std::size_t k = j + 1; k < nearest.size(); ++k) swaps += nearest[j] > nearest[k];
   return swaps;
+}
+
+int misassigned_nodes(const Nodes& estimate, const Nodes& truth) {
+  const std::vector<std::size_t> nearest = nearest_balls(estimate, truth);
+  int n = 0;
+  for (std::size_t j = 0; j < nearest.size(); ++j) n += nearest[j] != j;
+  return n;
 }
 
 FrameScore score_frame(const Nodes& estimate, const Nodes& truth) {
@@ -63,6 +82,7 @@ FrameScore score_frame(const Nodes& estimate, const Nodes& truth) {
   s.max_err = *std::max_element(s.node_err.begin(), s.node_err.end());
   s.polyline = bidirectional_polyline_distance(e, truth);
   s.swaps = topology_swaps(e, truth);
+  s.misassigned = misassigned_nodes(e, truth);
   return s;
 }
 
@@ -103,7 +123,7 @@ EpisodeScorer::EpisodeScorer(const ScoreParams& params) : params_(params) { para
 
 void EpisodeScorer::add(const FrameScore& score, double sdf, bool reinit, double time_s,
                         double occluded_fraction, double truth_motion) {
-  rows_.push_back({score.mean_err, sdf, score.polyline, time_s, score.swaps, reinit,
+  rows_.push_back({score.mean_err, sdf, score.polyline, time_s, score.swaps, score.misassigned, reinit,
                    occluded_fraction >= params_.occlusion_from,
                    truth_motion >= params_.fast_motion_from});
 }
@@ -126,6 +146,7 @@ EpisodeSummary EpisodeScorer::summary() const {
     s.under_5mm += r.mean_err < 0.005;
     s.swaps += r.swaps;
     s.swap_frames += r.swaps > 0;
+    s.misassigned += r.misassigned;
     if (std::isfinite(r.sdf)) sdf += r.sdf, ++n_sdf;
     if (std::isfinite(r.polyline)) poly += r.polyline, ++n_poly;
   }

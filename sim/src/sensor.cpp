@@ -152,6 +152,11 @@ struct Caster {
   static Caster of(const Eigen::AlignedBox3d& box_W, const Eigen::Matrix3d& R_WP,
                    const Eigen::Vector3d& p_WP) {
     Caster c;
+    if (box_W.isEmpty()) {  // an absent body blocks nothing
+      c.everywhere = false;
+      c.dist2 = std::numeric_limits<float>::infinity();
+      return c;
+    }
     double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
     for (int k = 0; k < 8; ++k) {
       const Eigen::Vector3d q =
@@ -177,8 +182,8 @@ struct Caster {
   /// q: the ray's start in the projector's frame (z along the optical axis).
   [[nodiscard]] bool may_block(const Eigen::Vector3f& q) const {
     if (everywhere) return true;
-    if (!(q.z() > 0)) return true;  // beside or behind the projector: no silhouette test
     if (q.squaredNorm() <= dist2) return false;
+    if (!(q.z() > 0)) return true;  // beside or behind the projector: no silhouette test
     const float x = q.x() / q.z(), y = q.y() / q.z();
     return x >= x0 && x <= x1 && y >= y0 && y <= y1;
   }
@@ -305,6 +310,7 @@ struct Sensor::Impl {
   // Per-pixel scratch, kept between frames.
   std::vector<float> cos_c, cos_p, reflect;
   std::vector<std::uint8_t> lit, hole, label_no_occluders;
+  std::vector<bool> occluder_on;  // whether each occluder's instance is enabled
   Eigen::AlignedBox3d component_box;  // a component's bounds in its own frame K
   std::vector<Eigen::AlignedBox3d> occluder_box;  // each occluder's bounds in its own frame
   SensorTimes times;
@@ -446,6 +452,7 @@ Sensor::Sensor(const SensorParams& params, const ComponentGeometry& geometry,
                                      m.occluders[k].path.pose(0.0), kMaskOccluder,
                                      static_cast<std::uint8_t>(kLabelOccluder0 + k),
                                      m.occluders[k].reflectance, m.occluder_id));
+    m.occluder_on.push_back(true);
   }
   m.statics = rtcNewScene(m.device);
   rtcSetSceneFlags(m.statics, RTC_SCENE_FLAG_ROBUST);
@@ -505,8 +512,15 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     for (int k = 0; k < 8; ++k)
       moving_W[0].extend(X_WK[c] * m.component_box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
   for (std::size_t k = 0; k < m.occluders.size(); ++k) {
+    moving_W.emplace_back();  // empty while absent: no rectangle, never casts a shadow
+    if (!m.occluders[k].present(t)) {
+      if (m.occluder_on[k]) rtcDisableGeometry(m.occluding[k]);
+      m.occluder_on[k] = false;
+      continue;
+    }
+    if (!m.occluder_on[k]) rtcEnableGeometry(m.occluding[k]);
+    m.occluder_on[k] = true;
     const Eigen::Isometry3d X_WO = m.occluders[k].path.pose(t);
-    moving_W.emplace_back();
     for (int c = 0; c < 8; ++c)
       moving_W.back().extend(X_WO * m.occluder_box[k].corner(static_cast<Eigen::AlignedBox3d::CornerType>(c)));
     set_transform(m.occluding[k], X_WO);

@@ -60,6 +60,7 @@ const char* const kMetrics[] = {
     "frames",          "lost_frames",         "node_err_mean_mm",   "node_err_median_mm",
     "node_err_p95_mm", "node_err_max_mm",     "pct_frames_under_2mm", "pct_frames_under_5mm",
     "sdf_err_mean_mm", "polyline_err_mean_mm", "swaps",              "swap_frames",
+    "misassigned_nodes",
     "reinit_count",    "occluded_fraction_mean", "occluded_fraction_max", "events",
     "events_recovered", "recover_frames_max", "non_finite_nodes"};
 const char* const kTiming[] = {"cell", "mode", "time_ms_mean", "time_ms_p95", "time_ms_max",
@@ -285,6 +286,10 @@ SweepCell sweep_cell(const SweepSpec& spec, std::size_t index) {
   return load_cell(spec, index).first;
 }
 
+Scene sweep_cell_scene(const SweepSpec& spec, std::size_t index) {
+  return load_cell(spec, index).second;
+}
+
 std::vector<std::string> sweep_columns(const SweepSpec& spec) {
   std::vector<std::string> c = {"cell", "mode"};
   for (const SweepAxis& a : spec.axes) c.push_back(a.key);
@@ -333,11 +338,11 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
     const std::vector<std::string> metrics = {
         num(s.frames), num(s.lost_frames), mm(s.node_err.mean), mm(s.node_err.median),
         mm(s.node_err.p95), mm(s.node_err.max), num(100 * s.under_2mm), num(100 * s.under_5mm),
-        mm(s.mean_sdf), mm(s.mean_polyline), num(s.swaps), num(s.swap_frames),
+        mm(s.mean_sdf), mm(s.mean_polyline), num(s.swaps), num(s.swap_frames), num(s.misassigned),
         num(s.reinit_count), num(s.frames > 0 ? occ_sum / s.frames : std::nan("")),
         num(occ_max), num(static_cast<int>(s.events.size())), num(recovered),
         recover_max < 0 ? std::string("nan") : num(recover_max), num(non_finite[k])};
-    static_assert(std::size(kMetrics) == 19);
+    static_assert(std::size(kMetrics) == 20);
     r.values.push_back(std::to_string(cell.seed));
     r.values.insert(r.values.end(), metrics.begin(), metrics.end());
     r.timing = {std::to_string(index), mode, num(s.time.mean * 1e3), num(s.time.p95 * 1e3),

@@ -13,8 +13,10 @@ namespace linksight::sim {
 namespace {
 
 const std::filesystem::path kScenes = LINKSIGHT_SCENE_DIR;
-const char* const kShipped[] = {"default",        "static",  "bend_push",  "base_sweep",
-                                "occluder_pass", "self_occlusion", "clutter", "fast_motion"};
+const char* const kShipped[] = {"default",           "static",           "bend_push",
+                                "base_sweep",        "occluder_pass",    "self_occlusion",
+                                "clutter",           "fast_motion",      "robustness_static",
+                                "robustness_moving"};
 
 // The link is tracked to within a few centimetres while nothing disturbs it. The SOM
 // puts nodes at the mean of the visible front surface, 2/3 of a ball radius (10 mm)

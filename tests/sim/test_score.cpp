@@ -2,6 +2,7 @@
 // and events, on small hand-made cases with known answers.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "linksight/sim/score.hpp"
@@ -34,15 +35,37 @@ TEST(Score, BidirectionalDistanceOfAShiftedCopyIsTheShift) {
   EXPECT_LT(bidirectional_polyline_distance(a, slid), 0.002);
 }
 
-TEST(Score, SwapsCountNodesNearestAnotherTrueNode) {
+TEST(Score, SwapsCountOrderInversionsAndMisassignedNodesWrongBalls) {
   const Nodes truth = line(12, 0.045);
   EXPECT_EQ(topology_swaps(truth, truth), 0);
+  EXPECT_EQ(misassigned_nodes(truth, truth), 0);
   Nodes e = truth;
-  std::swap(e[3], e[4]);
-  EXPECT_EQ(topology_swaps(e, truth), 2);
-  e = truth;
-  e[7] = truth[2];
+  std::swap(e[3], e[4]);  // neighbours trade places: one inversion, two wrong balls
   EXPECT_EQ(topology_swaps(e, truth), 1);
+  EXPECT_EQ(misassigned_nodes(e, truth), 2);
+  e = truth;
+  e[7] = truth[2];  // node 7 jumps back over nodes 3..6: four inversions (and 2 = 2)
+  EXPECT_EQ(topology_swaps(e, truth), 4);
+  EXPECT_EQ(misassigned_nodes(e, truth), 1);
+  e = truth;
+  e[5] = truth[4] + Eigen::Vector3d(0.01, 0, 0);  // a hidden ball's node on its neighbour
+  EXPECT_EQ(topology_swaps(e, truth), 0);
+  EXPECT_EQ(misassigned_nodes(e, truth), 1);
+  e = truth;
+  std::reverse(e.begin(), e.begin() + 11);  // the balls read back to front: all pairs
+  EXPECT_EQ(topology_swaps(e, truth), 11 * 10 / 2);
+  // The tip is not a ball: an estimated tip on the last ball is no swap, and no estimated
+  // ball node counts as a swap for being nearest the true tip...
+  e = truth;
+  e[11] = truth[10] + Eigen::Vector3d(0.02, 0.0, 0.0);
+  EXPECT_EQ(topology_swaps(e, truth), 0);
+  e[11] = truth[10];
+  EXPECT_EQ(topology_swaps(e, truth), 0);
+  // ...but a ball node beyond the next ball's node still is.
+  e[9] = truth[10] + Eigen::Vector3d(0.005, 0, 0);
+  e[10] = truth[9];
+  EXPECT_EQ(topology_swaps(e, truth), 1);
+  EXPECT_EQ(misassigned_nodes(e, truth), 2);
 }
 
 TEST(Score, FrameScoreMatchesEndsAndReportsErrors) {

@@ -12,6 +12,7 @@
 #include "linksight/sim/camera.hpp"
 #include "linksight/sim/extract.hpp"
 #include "linksight/sim/noise.hpp"
+#include "linksight/sim/occlusion.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/world.hpp"
 #include "linksight/tracker/tracker.hpp"
@@ -23,7 +24,9 @@ struct Scene {
   std::uint64_t seed = 1;
   CameraParams camera;  ///< truth and frames are sampled at camera.fps
   NoiseParams noise;    ///< preset sr300 unless the scene says otherwise
+  /// The listed occluders, then the one `occlusion` generates (when its fraction > 0).
   std::vector<Occluder> occluders;
+  ScreenOcclusion occlusion;  ///< as read; its occluder is already in `occluders`
   std::vector<BackgroundObject> background;  ///< table, wall and clutter
   ExtractParams segmentation;
   ChainParams chain;

@@ -21,8 +21,15 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 /// to a's polyline) [m]. Zero only when each polyline's nodes lie on the other.
 [[nodiscard]] double bidirectional_polyline_distance(const Nodes& a, const Nodes& b);
 
-/// Topology check: the number of estimated nodes j whose nearest true node is not j.
+/// Topology check: the order inversions among the estimated ball nodes (all but the
+/// last, the tip), each read as the index of its nearest true ball: pairs j < k whose
+/// nearest balls come in the other order. Two neighbouring nodes trading places count 1.
+/// A node pulled onto its neighbour's ball (a hidden ball's node, say) keeps the order and
+/// is no swap; misassigned_nodes counts it. The tip has no material at its true position
+/// (one pitch beyond the last ball) and is scored by its node error only.
 [[nodiscard]] int topology_swaps(const Nodes& estimate, const Nodes& truth);
+/// Estimated ball nodes j whose nearest true ball is not j.
+[[nodiscard]] int misassigned_nodes(const Nodes& estimate, const Nodes& truth);
 
 /// One tracker output against the truth of its frame (both in the camera frame).
 struct FrameScore {
@@ -31,6 +38,7 @@ struct FrameScore {
   double max_err = kNaN;         ///< [m]
   double polyline = kNaN;        ///< bidirectional point-to-polyline distance [m]
   int swaps = 0;                 ///< see topology_swaps
+  int misassigned = 0;           ///< see misassigned_nodes
   /// The tracker cannot know which end is the base: node order is matched to the truth
   /// end to end, and this says the estimate was read back to front.
   bool reversed = false;
@@ -77,6 +85,7 @@ struct EpisodeSummary {
   int reinit_count = 0;       ///< frames where LSQ re-initialization fired
   int swaps = 0;              ///< sum of topology swaps over frames
   int swap_frames = 0;        ///< frames with at least one swap
+  int misassigned = 0;        ///< sum of misassigned nodes over frames
   Stats time;                 ///< tracker time per frame [s]
   std::vector<Event> events;
 };
@@ -96,7 +105,7 @@ class EpisodeScorer {
  private:
   struct Row {
     double mean_err, sdf, polyline, time_s;
-    int swaps;
+    int swaps, misassigned;
     bool reinit, occluded, fast;
   };
   ScoreParams params_;

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -42,6 +43,15 @@ struct Occluder {
   Shape shape;
   BaseTrajectory path;       ///< pose X_WO over time
   double reflectance = 1.0;  ///< for the low-signal dropout proxy
+  /// In the scene only while from_s <= t < to_s [s]; outside it neither hides nor shadows.
+  double from_s = -std::numeric_limits<double>::infinity();
+  double to_s = std::numeric_limits<double>::infinity();
+  /// Times within 1 us count as equal: a frame's time is a sum of physics steps, and
+  /// 100 steps of 1 ms make 0.09999999999999999 s.
+  [[nodiscard]] bool present(double t) const {
+    constexpr double kSlack = 1e-6;
+    return t >= from_s - kSlack && t < to_s - kSlack;
+  }
 };
 
 /// Static scenery: table, wall, clutter.

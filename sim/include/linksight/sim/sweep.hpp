@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "linksight/sim/scene.hpp"
 #include "linksight/tracker/tracker.hpp"
 
 namespace linksight::sim {
@@ -55,6 +56,9 @@ struct SweepCell {
 };
 /// Cell `index` of the grid (index < spec.cells()). Loads the scene to read its seed.
 [[nodiscard]] SweepCell sweep_cell(const SweepSpec& spec, std::size_t index);
+/// The scene cell `index` runs: the base scene (or its `scene` value) with the cell's
+/// overrides, and its seed. For callers that run the episode themselves.
+[[nodiscard]] Scene sweep_cell_scene(const SweepSpec& spec, std::size_t index);
 
 /// The deterministic columns: cell, mode, one per axis, seed, then the metrics (lengths
 /// in mm, as the names say).

@@ -1,0 +1,38 @@
+#pragma once
+/// @file A generated occluder that hides a set fraction of the link: the scene key
+/// `occlusion`, which makes "occluded fraction" a sweepable number instead of a box
+/// placed by hand for every camera pose.
+
+#include "linksight/sim/camera.hpp"
+#include "linksight/sim/sensor.hpp"
+#include "linksight/sim/trajectory.hpp"
+#include "linksight/sim/world.hpp"
+
+namespace linksight::sim {
+
+/// A thin box held between the camera and the link over [from_s, to_s). It is sized on
+/// the straight rest pose of the link at from_s so that, seen from the camera, it covers
+/// `fraction` of the link's length at its middle or at its tip end; the truth occluded
+/// fraction a frame reports is what it really hides.
+struct ScreenOcclusion {
+  enum class Where { middle, tip };
+  double fraction = 0.0;  ///< of the link's length seen from the camera, [0, 1); 0: none
+  Where at = Where::middle;
+  double from_s = 1.0;    ///< appears [s]
+  double to_s = 2.0;      ///< disappears [s]
+  double gap = 0.05;      ///< from the link's axis toward the camera [m]
+  double height = 0.10;   ///< across the link, as seen at the link's distance [m]
+  /// Carried with the base, so the hidden part stays the same while the link moves
+  /// (sampled at every camera frame); else it stays where it appeared.
+  bool follow_base = true;
+  void validate() const;  ///< throws std::invalid_argument naming the field
+};
+
+/// The occluder of `o` for a chain whose base follows `base`, seen by `camera`, over
+/// `duration_s`. Precondition: o.fraction > 0. Throws std::invalid_argument when the link
+/// at from_s is not in front of the camera.
+[[nodiscard]] Occluder screen_occluder(const ScreenOcclusion& o, const ComponentGeometry& chain,
+                                       const BaseTrajectory& base, const CameraParams& camera,
+                                       double duration_s);
+
+}  // namespace linksight::sim

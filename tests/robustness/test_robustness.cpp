@@ -1,0 +1,174 @@
+// Robustness suites: a noise x occluded-fraction grid on a still and on a moving link,
+// each cell an episode scored against the truth, with bands asserted per cell. Which
+// scene, where the board sits and which grid come from the environment (set by ctest:
+// tests/robustness/CMakeLists.txt), so the CI grid and the dense grid share one test.
+// Every band below is measured, and docs/robustness.md says why it sits where it does.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "linksight/sim/episode.hpp"
+#include "linksight/sim/sweep.hpp"
+
+namespace linksight::sim {
+namespace {
+
+// Bands [m] and [frames]; see docs/robustness.md.
+// Paper mode puts each node at the mean of a ball's visible cap, 2/3 r = 10 mm in front
+// of the centre: its node error at nominal noise is 12.1-12.3 mm (static and moving).
+// 14 mm leaves 1.7 mm for seeds and noise, and fails if the bias grows by a sixth.
+constexpr double kPaperNodeErrBand = 0.014;
+// paper-centred removes that bias: measured 3.8-3.9 mm; 5 mm is the "tracking" line
+// of the episode scoring (ScoreParams::recovered_below).
+constexpr double kCentredNodeErrBand = 0.005;
+// The paper's own figure on its real camera: mean SDF error below 4 mm. Paper mode's
+// surface nodes measure 4.6-4.7 mm here (a node on the surface is off the centreline
+// the SDF is taken against): band 5 mm. paper-centred meets the paper's 4 mm (1.6 mm).
+constexpr double kPaperSdfBand = 0.005;
+constexpr double kCentredSdfBand = 0.004;
+// After the board leaves, paper mode is back within kRecoveredMargin of its error before
+// the board came within this many frames (0.1 s). Measured: at most 1 at noise <= 1.
+constexpr int kRecoverFrames = 3;
+constexpr double kRecoveredMargin = 0.002;
+// Frames the tracker gets to settle before the pre-occlusion error is taken.
+constexpr int kSettleFrames = 10;
+
+std::string env(const char* name, const char* fallback) {
+  const char* v = std::getenv(name);
+  return v && *v ? v : fallback;
+}
+
+struct ModeResult {
+  int non_finite = 0, lost = 0, swaps = 0, swap_frames = 0;
+  double before = NAN;      // median mean node error over the clear frames before [m]
+  double sdf_before = NAN;  // mean SDF metric over the same frames [m]
+  double worst = 0;         // largest per-frame mean node error [m]
+  int recover = -1;         // frames after the board left until back within the margin
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::vector<ModeResult> run(const Scene& scene, const std::vector<TrackerMode>& modes) {
+  EpisodeOptions o;
+  o.modes = modes;
+  o.threads = 1;
+  Episode e(scene, o);
+  const std::size_t m = modes.size();
+  std::vector<ModeResult> r(m);
+  std::vector<std::vector<double>> err(m), sdf(m);
+  const double from = scene.occlusion.from_s, to = scene.occlusion.to_s;
+  int end_frame = -1;
+  while (e.done() < e.frames()) {
+    const EpisodeFrame& f = e.step();
+    const bool before = f.frame >= kSettleFrames && f.t < from - 1e-9;
+    if (end_frame < 0 && f.t >= to - 1e-9) end_frame = f.frame;
+    for (std::size_t k = 0; k < m; ++k) {
+      const FrameResult& fr = f.results[k];
+      const FrameScore& s = f.scores[k];
+      ModeResult& mr = r[k];
+      if (fr.lost) {
+        ++mr.lost;
+        continue;
+      }
+      for (const Eigen::Vector3d& q : fr.nodes) mr.non_finite += !q.allFinite();
+      mr.non_finite += !std::isfinite(s.mean_err) + !std::isfinite(fr.sdf_error);
+      mr.swaps += s.swaps;
+      mr.swap_frames += s.swaps > 0;
+      mr.worst = std::max(mr.worst, s.mean_err);
+      if (before) {
+        err[k].push_back(s.mean_err);
+        sdf[k].push_back(fr.sdf_error);
+      }
+      if (f.t >= to - 1e-9 && mr.recover < 0 && !err[k].empty() &&
+          s.mean_err <= median(err[k]) + kRecoveredMargin)
+        mr.recover = f.frame - end_frame;
+    }
+  }
+  for (std::size_t k = 0; k < m; ++k) {
+    r[k].before = median(err[k]);
+    double sum = 0;
+    for (double x : sdf[k]) sum += x;
+    r[k].sdf_before = sdf[k].empty() ? NAN : sum / static_cast<double>(sdf[k].size());
+  }
+  return r;
+}
+
+TEST(Robustness, Bands) {
+  const std::string scene_file = env("LINKSIGHT_ROBUSTNESS_SCENE", "robustness_static.yaml");
+  const std::string at = env("LINKSIGHT_ROBUSTNESS_AT", "middle");
+  const std::string grid = env("LINKSIGHT_ROBUSTNESS_GRID", "");
+  ASSERT_FALSE(grid.empty()) << "LINKSIGHT_ROBUSTNESS_GRID names the grid file (set by ctest)";
+  SweepSpec spec;
+  spec.scene = std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file;
+  spec.axes = read_grid(grid);
+  spec.set = {"occlusion.at=" + at};
+  const std::vector<TrackerMode> modes = {TrackerMode::paper, TrackerMode::paper_centred,
+                                          TrackerMode::accelerated_som};
+  spec.validate();
+  auto axis = [&](const std::string& key, const std::vector<std::string>& values) {
+    for (std::size_t k = 0; k < spec.axes.size(); ++k)
+      if (spec.axes[k].key == key) return std::stod(values[k]);
+    ADD_FAILURE() << "the grid has no axis " << key;
+    return std::nan("");
+  };
+  std::printf("%-34s %-16s %6s %6s %8s %8s %8s %6s %6s\n", "cell", "mode", "noise", "occl",
+              "err_mm", "worst_mm", "sdf_mm", "swaps", "recov");
+  int cells_with_events = 0;
+  for (std::size_t i = 0; i < spec.cells(); ++i) {
+    const SweepCell cell = sweep_cell(spec, i);
+    const Scene scene = sweep_cell_scene(spec, i);
+    const double noise = axis("noise.scale", cell.values);
+    const double occl = axis("occlusion.fraction", cell.values);
+    std::string name = scene_file + " at=" + at;
+    for (std::size_t k = 0; k < spec.axes.size(); ++k)
+      name += " " + spec.axes[k].key + "=" + cell.values[k];
+    const std::vector<ModeResult> r = run(scene, modes);
+    cells_with_events += occl > 0;
+    for (std::size_t k = 0; k < modes.size(); ++k) {
+      const ModeResult& mr = r[k];
+      const std::string mode(to_string(modes[k]));
+      std::printf("%-34s %-16s %6.2f %6.2f %8.2f %8.2f %8.2f %6d %6d\n",
+                  ("cell " + std::to_string(i)).c_str(), mode.c_str(), noise, occl,
+                  mr.before * 1e3, mr.worst * 1e3, mr.sdf_before * 1e3, mr.swaps, mr.recover);
+      SCOPED_TRACE(name + " mode=" + mode);
+      // Everywhere: no NaN, no lost frame (half the link stays in view).
+      EXPECT_EQ(mr.non_finite, 0);
+      EXPECT_EQ(mr.lost, 0);
+      const bool paper_som = modes[k] != TrackerMode::accelerated_som;
+      // Paper's SOM keeps the chain's order while noise is nominal and 30% is hidden.
+      if (paper_som && noise <= 1.0 && occl <= 0.3) {
+        EXPECT_EQ(mr.swaps, 0);
+      }
+      // Accuracy at nominal noise, before the board comes.
+      if (noise == 1.0) {
+        if (modes[k] == TrackerMode::paper) {
+          EXPECT_LT(mr.before, kPaperNodeErrBand);
+          EXPECT_LT(mr.sdf_before, kPaperSdfBand);
+        }
+        if (modes[k] == TrackerMode::paper_centred) {
+          EXPECT_LT(mr.before, kCentredNodeErrBand);
+          EXPECT_LT(mr.sdf_before, kCentredSdfBand);
+        }
+      }
+      // Recovery once the board has gone.
+      if (paper_som && noise <= 1.0 && occl > 0) {
+        EXPECT_GE(mr.recover, 0) << "never back within " << kRecoveredMargin * 1e3 << " mm";
+        EXPECT_LE(mr.recover, kRecoverFrames);
+      }
+    }
+  }
+  EXPECT_GT(cells_with_events, 0) << "the grid hides nothing: no recovery was tested";
+}
+
+}  // namespace
+}  // namespace linksight::sim
