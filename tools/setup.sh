@@ -21,6 +21,7 @@ packages=(
   libassimp-dev             # sim/: mesh files (load_mesh)
   libembree-dev             # sim/: ray casting for the simulated depth camera
   python3-matplotlib        # linksight run: figures (tools/plot_run.py)
+  slurm-wlm munge           # the slurm ctest: a real single-node Slurm (slurmctld, slurmd, sbatch) and munge
   zlib1g-dev                # assimp's CMake package links libz.so, which --no-install-recommends leaves out
 )
 
