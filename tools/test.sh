@@ -7,7 +7,7 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 jobs=$(nproc)
 
 bash "$root/tools/setup.sh"
-# robustness-full is the dense grid (tens of minutes): run it with ctest -L robustness-full.
+# robustness-full is the dense grid (about 12 min): run it with ctest -L robustness-full -j 2.
 ctest --test-dir "${LINKSIGHT_BUILD_DIR:-$root/build}" -j "$jobs" -LE robustness-full --output-on-failure
 
 echo "test: sanitizer build (unit tests, -fsanitize=address,undefined)"

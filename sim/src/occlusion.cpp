@@ -1,5 +1,6 @@
 #include "linksight/sim/occlusion.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -19,10 +20,29 @@ void ScreenOcclusion::validate() const {
   if (!(height > 0 && height < 1)) bad("height_m", height, "must be in (0, 1) m");
 }
 
+namespace {
+constexpr double kHalfThickness = 0.005;  // of the board [m]
+constexpr double kClearance = 0.002;      // between the board's back face and the balls [m]
+}  // namespace
+
 Occluder screen_occluder(const ScreenOcclusion& o, const ComponentGeometry& chain,
                          const BaseTrajectory& base, const CameraParams& camera,
                          double duration_s) {
   o.validate();
+  if (!(o.fraction > 0))
+    throw std::invalid_argument("occlusion.fraction = " + std::to_string(o.fraction) +
+                                ": must be > 0 for a board");
+  // The board must clear the link's front, or the balls poke through and it hides less.
+  const double min_gap =
+      std::max(chain.ball_radius, chain.neck_radius) + kHalfThickness + kClearance;
+  if (!(o.gap >= min_gap))
+    throw std::invalid_argument("occlusion.gap_m = " + std::to_string(o.gap) +
+                                ": must be >= " + std::to_string(min_gap) +
+                                " m, so the board clears the balls");
+  if (!(o.from_s < duration_s))
+    throw std::invalid_argument("occlusion.from_s = " + std::to_string(o.from_s) +
+                                ": must be < duration_s (" + std::to_string(duration_s) +
+                                "), or the board never appears");
   // The link in the base frame B: ball k at (k d, 0, 0). Its silhouette runs from the
   // back of ball 0 to the end of the last component's neck.
   const double d = chain.pitch, r = chain.ball_radius;
@@ -46,8 +66,10 @@ Occluder screen_occluder(const ScreenOcclusion& o, const ComponentGeometry& chai
   const Eigen::Vector3d eye = camera.X_WC.translation();
   const double dist = (q_mid - eye).norm();
   const Eigen::Vector3d w = (q_mid - eye) / dist;  // viewing direction to the hidden part
-  if (!(w.dot(camera.X_WC.linear().col(2)) > 0) || !(dist > o.gap))
-    throw std::invalid_argument("occlusion: the link at from_s = " + std::to_string(o.from_s) +
+  // Both ends of the hidden part must lie beyond the board's plane, seen from the camera.
+  if (!(w.dot(camera.X_WC.linear().col(2)) > 0) || !((q0 - eye).dot(w) > o.gap) ||
+      !((q1 - eye).dot(w) > o.gap))
+    throw std::invalid_argument("the link at from_s = " + std::to_string(o.from_s) +
                                 " s is not in front of the camera, beyond gap_m");
   // The box lies in the plane through q_mid - gap w with normal w; the hidden interval's
   // ends are where the camera rays to q0 and q1 cross that plane.
@@ -67,7 +89,7 @@ Occluder screen_occluder(const ScreenOcclusion& o, const ComponentGeometry& chai
 
   Occluder occ;
   occ.shape.kind = Shape::Kind::box;
-  occ.shape.half_extents = {0.5 * (a1 - a0).norm(), 0.5 * o.height * scale, 0.005};
+  occ.shape.half_extents = {0.5 * (a1 - a0).norm(), 0.5 * o.height * scale, kHalfThickness};
   occ.from_s = o.from_s;
   occ.to_s = o.to_s;
   const Eigen::Isometry3d X_BO = X_WB.inverse() * X_WO;

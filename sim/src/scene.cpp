@@ -517,7 +517,12 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
       oc.reflectance = r.number(o[i], at, "reflectance", 1.0, 0, 10);
       if (const YAML::Node route = o[i]["path"]) oc.path = r.trajectory(route, at + ".path");
       oc.from_s = r.number(o[i], at, "from_s", 0.0, 0.0, 1e6);
-      if (o[i]["to_s"]) oc.to_s = r.number(o[i], at, "to_s", 0.0, oc.from_s + 1e-9, 1e6);
+      if (o[i]["to_s"]) {
+        oc.to_s = r.number(o[i], at, "to_s", 0.0, 0.0, 1e6);
+        if (!(oc.to_s > oc.from_s))
+          r.fail(o[i]["to_s"], at + ".to_s",
+                 std::to_string(oc.to_s) + " must be > from_s (" + std::to_string(oc.from_s) + ")");
+      }
       if (!o[i]["from_s"]) oc.from_s = -std::numeric_limits<double>::infinity();
       s.occluders.push_back(oc);
     }
@@ -604,7 +609,10 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
                 ? ScreenOcclusion::Where::tip
                 : ScreenOcclusion::Where::middle;
     so.from_s = r.number(o, "occlusion", "from_s", so.from_s, 0.0, 1e6);
-    so.to_s = r.number(o, "occlusion", "to_s", so.to_s, so.from_s + 1e-9, 1e6);
+    so.to_s = r.number(o, "occlusion", "to_s", so.to_s, 0.0, 1e6);
+    if (!(so.to_s > so.from_s))
+      r.fail(o["to_s"] ? o["to_s"] : o, "occlusion.to_s",
+             std::to_string(so.to_s) + " must be > from_s (" + std::to_string(so.from_s) + ")");
     so.gap = r.number(o, "occlusion", "gap_m", so.gap, 1e-3, 0.5);
     so.height = r.number(o, "occlusion", "height_m", so.height, 1e-3, 0.5);
     so.follow_base = r.boolean(o, "occlusion", "follow_base", so.follow_base);
@@ -615,7 +623,14 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
         s.occluders.push_back(
             screen_occluder(so, s.chain.geometry, s.base, s.camera, s.duration_s));
       } catch (const std::invalid_argument& e) {
-        r.fail(o, "occlusion", e.what());
+        // "occlusion.gap_m = ...: ..." names its own key; the rest are about the block.
+        const std::string what = e.what();
+        if (what.rfind("occlusion.", 0) == 0) {
+          const std::string key = what.substr(0, what.find(' '));
+          const YAML::Node at = o[key.substr(10)];
+          r.fail(at ? at : o, key, what.substr(key.size() + 3));  // "<value>: <rule>"
+        }
+        r.fail(o, "occlusion", what);
       }
     }
   }

@@ -33,7 +33,8 @@ namespace {
 // has no ball under it: the SOM places it on the last ball's far cap, nearer true ball
 // M-1 than the true tip, which is neither a change of order nor a wrong ball.
 std::vector<std::size_t> nearest_balls(const Nodes& estimate, const Nodes& truth) {
-  const std::size_t balls = std::min(estimate.size(), truth.size()) - (truth.empty() ? 0 : 1);
+  if (estimate.empty() || truth.empty()) return {};
+  const std::size_t balls = std::min(estimate.size(), truth.size()) - 1;
   std::vector<std::size_t> nearest(balls, 0);
   for (std::size_t j = 0; j < balls; ++j)
     for (std::size_t k = 1; k < balls; ++k)

@@ -420,6 +420,11 @@ Sensor::Sensor(const SensorParams& params, const ComponentGeometry& geometry,
   const TriangleMesh component = component_mesh(geometry, params.component_segments);
   std::vector<TriangleMesh> occluder_meshes, background_meshes;
   for (std::size_t k = 0; k < m.occluders.size(); ++k) {
+    const Occluder& o = m.occluders[k];
+    if (std::isnan(o.from_s) || std::isnan(o.to_s) || !(o.from_s < o.to_s))
+      throw std::invalid_argument("occluder " + std::to_string(k) + ": from_s = " +
+                                  std::to_string(o.from_s) + ", to_s = " +
+                                  std::to_string(o.to_s) + ": need from_s < to_s");
     try {
       occluder_meshes.push_back(m.occluders[k].shape.triangles());
     } catch (const std::invalid_argument& e) {

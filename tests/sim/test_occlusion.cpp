@@ -124,11 +124,35 @@ TEST(Occlusion, BadKeysAreNamed) {
   // A camera looking away from the link: the board cannot be placed.
   EXPECT_NE(error_of("camera:\n  look_at: {eye_m: [0.25, -0.6, 0.6], target_m: [0.25, -1.6, 0.6]}\n"
                      "occlusion: {fraction: 0.2}\n")
-                .find("occlusion: occlusion: the link at from_s"),
+                .find(":3: occlusion: the link at from_s"),
             std::string::npos);
-  EXPECT_NE(error_of("occluders:\n  - {from_s: 2, to_s: 1}\n").find("occluders[0].to_s"),
+  // A board inside the balls would hide less than asked.
+  EXPECT_NE(error_of("occlusion: {fraction: 0.2, gap_m: 0.01}\n")
+                .find(":1: occlusion.gap_m: 0.010000: must be >= 0.022000 m"),
+            std::string::npos)
+      << error_of("occlusion: {fraction: 0.2, gap_m: 0.01}\n");
+  EXPECT_NE(error_of("duration_s: 1\nocclusion: {fraction: 0.2, from_s: 1.5, to_s: 2}\n")
+                .find("occlusion.from_s: 1.500000: must be < duration_s"),
+            std::string::npos);
+  EXPECT_NE(error_of("occluders:\n  - {from_s: 2, to_s: 1}\n")
+                .find("occluders[0].to_s: 1.000000 must be > from_s (2.000000)"),
             std::string::npos);
   EXPECT_EQ(error_of("occlusion: {fraction: 0.2, at: tip, gap_m: 0.1, height_m: 0.05}\n"), "no error");
+}
+
+TEST(Occlusion, SensorRefusesAnEmptyWindow) {
+  Occluder o;
+  o.from_s = 2.0;
+  o.to_s = 1.0;
+  SensorParams p;
+  try {
+    Sensor s(p, ComponentGeometry{}, {Occluder{}, o});
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("occluder 1: from_s = 2.000000, to_s = 1.000000"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(Occlusion, ParamsValidateNamesTheField) {

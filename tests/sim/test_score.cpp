@@ -61,6 +61,12 @@ TEST(Score, SwapsCountOrderInversionsAndMisassignedNodesWrongBalls) {
   EXPECT_EQ(topology_swaps(e, truth), 0);
   e[11] = truth[10];
   EXPECT_EQ(topology_swaps(e, truth), 0);
+  e = truth;
+  e[9] = truth[11] - Eigen::Vector3d(0.001, 0, 0);  // nearest the true tip: not a candidate
+  EXPECT_EQ(topology_swaps(e, truth), 0);
+  EXPECT_EQ(misassigned_nodes(e, truth), 1);  // nearest true ball: 10
+  EXPECT_EQ(topology_swaps({}, truth), 0);
+  EXPECT_EQ(misassigned_nodes(truth, {}), 0);
   // ...but a ball node beyond the next ball's node still is.
   e[9] = truth[10] + Eigen::Vector3d(0.005, 0, 0);
   e[10] = truth[9];
@@ -115,6 +121,7 @@ TEST(Score, EpisodeEventsAndRecovery) {
     FrameScore s;
     s.mean_err = err_mm[f] * 1e-3;
     s.swaps = f == 4 ? 2 : 0;
+    s.misassigned = f == 3 || f == 4 ? 3 : 0;
     scorer.add(s, 0.001, f == 5, 1e-3 * (f + 1), occluded[f], motion_m[f]);
   }
   const EpisodeSummary sum = scorer.summary();
@@ -123,6 +130,7 @@ TEST(Score, EpisodeEventsAndRecovery) {
   EXPECT_EQ(sum.reinit_count, 1);
   EXPECT_EQ(sum.swaps, 2);
   EXPECT_EQ(sum.swap_frames, 1);
+  EXPECT_EQ(sum.misassigned, 6);
   EXPECT_DOUBLE_EQ(sum.under_2mm, 0.2);  // of all 10 frames
   EXPECT_DOUBLE_EQ(sum.under_5mm, 0.4);
   EXPECT_NEAR(sum.node_err.max, 0.030, kTol);

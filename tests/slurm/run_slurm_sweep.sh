@@ -7,6 +7,8 @@
 # Every daemon (and any job step still alive) is stopped by PID on exit, pass or fail, and
 # the temporary directory removed; LINKSIGHT_SLURM_KEEP=1 keeps it for a post-mortem.
 set -euo pipefail
+# munged refuses a group-writable pid or log directory: do not inherit a umask of 002.
+umask 022
 
 if [[ $# -ne 2 ]]; then
   echo "usage: $0 LINKSIGHT-EXE SOURCE-ROOT" >&2
@@ -208,11 +210,13 @@ log "Slurm up as $user (ports $port/$((port + 1)), $tmp)"
 # Absolute paths: the jobs run in the submit directory ($tmp/work), not here.
 # shellcheck disable=SC2054  # the commas are linksight's value lists
 sweep=(--scene "$root/scenes/robustness_static.yaml" --axis noise.scale=0,1
-  --axis occlusion.fraction=0,0.3 --compare paper,accelerated-som --frames 4)
+  --axis occlusion.fraction=0,0.3 --compare paper,accelerated-som --frames 4
+  --set occlusion.from_s=0.05 --set occlusion.to_s=0.09)  # the board in frame 2 only
 start=$SECONDS
-"$exe" sweep "${sweep[@]}" --out "$tmp/local" --no-figures --quiet
+# Bounded waits: a ctest TIMEOUT kills with SIGKILL, which skips the cleanup trap.
+timeout 120 "$exe" sweep "${sweep[@]}" --out "$tmp/local" --no-figures --quiet
 # Submitting from $tmp/work puts the slurm-*.out files there, for dump_logs.
-out=$(cd "$tmp/work" && LINKSIGHT_EXE="$exe" bash "$root/tools/slurm/submit.sh" 3 \
+out=$(cd "$tmp/work" && LINKSIGHT_EXE="$exe" timeout 60 bash "$root/tools/slurm/submit.sh" 3 \
   "${sweep[@]}" --out "$tmp/slurm")
 log "$out"
 [[ "$out" =~ ^array\ ([0-9]+)\ .*merge\ ([0-9]+): ]] || fail "cannot read job IDs from submit.sh"

@@ -20,7 +20,7 @@ struct ScreenOcclusion {
   Where at = Where::middle;
   double from_s = 1.0;    ///< appears [s]
   double to_s = 2.0;      ///< disappears [s]
-  double gap = 0.05;      ///< from the link's axis toward the camera [m]
+  double gap = 0.05;      ///< from the link's axis toward the camera [m]; >= r + 7 mm
   double height = 0.10;   ///< across the link, as seen at the link's distance [m]
   /// Carried with the base, so the hidden part stays the same while the link moves
   /// (sampled at every camera frame); else it stays where it appeared.
@@ -29,8 +29,9 @@ struct ScreenOcclusion {
 };
 
 /// The occluder of `o` for a chain whose base follows `base`, seen by `camera`, over
-/// `duration_s`. Precondition: o.fraction > 0. Throws std::invalid_argument when the link
-/// at from_s is not in front of the camera.
+/// `duration_s`. Throws std::invalid_argument naming the field: fraction not > 0, a gap
+/// that does not clear the balls (gap_m >= ball radius + 7 mm), from_s not before
+/// duration_s, or the link at from_s not in front of the camera beyond the gap.
 [[nodiscard]] Occluder screen_occluder(const ScreenOcclusion& o, const ComponentGeometry& chain,
                                        const BaseTrajectory& base, const CameraParams& camera,
                                        double duration_s);

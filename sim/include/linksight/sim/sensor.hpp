@@ -46,8 +46,8 @@ struct Occluder {
   /// In the scene only while from_s <= t < to_s [s]; outside it neither hides nor shadows.
   double from_s = -std::numeric_limits<double>::infinity();
   double to_s = std::numeric_limits<double>::infinity();
-  /// Times within 1 us count as equal: a frame's time is a sum of physics steps, and
-  /// 100 steps of 1 ms make 0.09999999999999999 s.
+  /// Times within 1 us count as equal: a frame's time comes from the physics clock
+  /// (steps x dt), which need not equal f / fps to the last bit.
   [[nodiscard]] bool present(double t) const {
     constexpr double kSlack = 1e-6;
     return t >= from_s - kSlack && t < to_s - kSlack;
