@@ -20,5 +20,6 @@ Runner add_meshes(CLI::App& app);
 Runner add_render(CLI::App& app);
 Runner add_run(CLI::App& app);
 Runner add_sweep(CLI::App& app);
+Runner add_calibrate_noise(CLI::App& app);
 
 }  // namespace linksight::cli

@@ -35,6 +35,10 @@ int main(int argc, char** argv) {
        "Render a scene with the simulated SR300: depth and label PNGs, clouds, truth in the "
        "camera frame.",
        add_render},
+      {"calibrate-noise",
+       "Measure a depth camera's noise and artefacts on a real recording (16-bit depth PNGs) "
+       "and fit the simulated SR300's noise model: a report and a noise: block for scenes.",
+       add_calibrate_noise},
       {"devices", "List every OpenCL platform and device, and what the opencl back end needs.",
        add_devices},
       {"meshes", "Write the component's triangle mesh (component.obj, metres, frame K).",

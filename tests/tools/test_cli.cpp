@@ -10,7 +10,9 @@
 
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/ply.hpp"
+#include "linksight/io/intrinsics.hpp"
 #include "linksight/sim/recording.hpp"
+#include "linksight/sim/scene.hpp"
 #include "test_support.hpp"
 
 namespace linksight {
@@ -490,6 +492,69 @@ TEST_F(Cli, SweepBadInputIsNamed) {
   const CliRun r = run("sweep merge " + (dir / "nothing").string(), dir);
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("no sweep manifest"), std::string::npos) << r.err;
+}
+
+// calibrate-noise on the real SR305 frames: a report, and a noise: block that a scene
+// accepts as it is (loaded here, and its fitted values reach the scene's noise).
+TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
+  const fs::path real = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
+  fs::create_directories(dir);
+  const fs::path yaml = dir / "noise.yaml";
+  const CliRun r = run("calibrate-noise --input " + (real / "frames").string() +
+                           " --intrinsics " + (real / "intrinsics.json").string() + " --out " +
+                           yaml.string() + " --report " + (dir / "report").string(),
+                       dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("projector: image-left"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("residual correlation at 1..4 px"), std::string::npos);
+  EXPECT_TRUE(fs::exists(dir / "report" / "report.txt"));
+  std::ifstream in(dir / "report" / "stats.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["frames"], 11);
+  EXPECT_EQ(j["projector_side"], -1);
+  // The block goes into a scene unchanged.
+  std::ifstream block(yaml);
+  std::stringstream text;
+  text << block.rdbuf();
+  std::ofstream(dir / "scene.yaml") << "duration_s: 0.1\n" << text.str();
+  const sim::Scene scene = sim::load_scene(dir / "scene.yaml");
+  EXPECT_NEAR(scene.noise.shadow.baseline, j["baseline_mm"].get<double>() * 1e-3, 1e-8);
+  EXPECT_LT(scene.noise.shadow.baseline, 0.0);
+}
+
+TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
+  const fs::path real = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
+  fs::create_directories(dir / "in");
+  const std::string k = " --intrinsics " + (real / "intrinsics.json").string();
+  // No valid pixels.
+  io::write_depth_png(dir / "in" / "zero.png",
+                      io::DepthImage{640, 480, std::vector<std::uint16_t>(640 * 480, 0)});
+  expect_refused("calibrate-noise --input " + (dir / "in").string() + k, "no valid pixel");
+  // Intrinsics that do not match the frames.
+  io::Intrinsics small;
+  small.width = 32;
+  small.height = 24;
+  io::write_intrinsics(dir / "small.json", small);
+  expect_refused("calibrate-noise --input " + (real / "frames").string() + " --intrinsics " +
+                     (dir / "small.json").string(),
+                 "does not match the intrinsics");
+  // Too small a recording to estimate from: one flat-less, nearly empty frame.
+  std::vector<std::uint16_t> sparse(640 * 480, 0);
+  for (std::size_t i = 0; i < sparse.size(); i += 97) sparse[i] = 5000;
+  fs::remove(dir / "in" / "zero.png");
+  io::write_depth_png(dir / "in" / "sparse.png", io::DepthImage{640, 480, sparse});
+  expect_refused("calibrate-noise --input " + (dir / "in").string() + k, "need at least 10");
+  // Not 16-bit: the reader names the file.
+  fs::remove(dir / "in" / "sparse.png");
+  const unsigned char png8[] = {
+      0x89, 0x50, 0x4E, 0x47, 0x0D, 0x0A, 0x1A, 0x0A, 0x00, 0x00, 0x00, 0x0D, 0x49, 0x48,
+      0x44, 0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x00, 0x00, 0x00,
+      0x00, 0x3A, 0x7E, 0x9B, 0x55, 0x00, 0x00, 0x00, 0x0A, 0x49, 0x44, 0x41, 0x54, 0x78,
+      0x9C, 0x63, 0x60, 0x00, 0x00, 0x00, 0x02, 0x00, 0x01, 0xE5, 0x27, 0xDE, 0xFC, 0x00,
+      0x00, 0x00, 0x00, 0x49, 0x45, 0x4E, 0x44, 0xAE, 0x42, 0x60, 0x82};
+  std::ofstream(dir / "in" / "g8.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(png8), sizeof png8);
+  expect_refused("calibrate-noise --input " + (dir / "in").string() + k, "must be 16-bit");
 }
 
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {

@@ -1,0 +1,117 @@
+#pragma once
+/// @file Statistics of a depth camera's noise and artefacts, measured on depth images of
+/// any static or slowly moving scene: plane-fit sigma by depth and by incidence angle,
+/// the spatial correlation of the residuals, invalid bands and flying pixels at depth
+/// discontinuities (per side), the projector baseline and side from the shadow widths,
+/// interior holes and the quantization step. The same numbers come out of a real recording
+/// and of a simulated one (`linksight render`), which is what `calibrate-noise` fits the
+/// noise model to and what `fidelity` compares. Nothing here knows the scene.
+
+#include <array>
+#include <vector>
+
+#include "linksight/io/depth_png.hpp"
+#include "linksight/io/intrinsics.hpp"
+
+namespace linksight::sim {
+
+struct DepthStatsParams {
+  int window = 15;                 ///< plane-fit window side [px]
+  int min_valid = 200;             ///< valid pixels a window needs (of window^2)
+  /// A window with any plane-fit residual above this holds an edge or a flying pixel,
+  /// not a surface: it is left out [m].
+  double max_residual = 0.01;
+  double edge_jump = 0.02;  ///< depth step that makes a discontinuity [m]
+  int max_band_px = 40;     ///< wider invalid runs are not an edge band [px]
+  int max_hole_px = 1000;   ///< larger enclosed invalid regions are not holes [px]
+  /// Depth bin edges [m] and incidence-angle bin edges [rad] for sigma.
+  std::vector<double> depth_edges = {0.40, 0.50, 0.60, 0.70, 0.80, 0.90, 1.00};
+  std::vector<double> angle_edges = {0.0, 0.2618, 0.5236, 0.7854, 1.0472, 1.3090, 1.5708};
+  /// sigma by depth uses windows under this incidence, so the angle term stays out [rad].
+  double depth_bin_max_angle = 0.5236;
+  void validate() const;  ///< throws std::invalid_argument naming the field
+};
+
+/// Median plane-fit sigma of the windows in one bin.
+struct SigmaBin {
+  double lo = 0, hi = 0;  ///< bin edges (m or rad)
+  int windows = 0;
+  double sigma = 0;       ///< median [m]; 0 when no window
+  double centre = 0;      ///< median depth [m] or angle [rad] of its windows
+};
+
+/// Depth discontinuities seen with the near surface on one side of the gap, scanning rows.
+struct EdgeSide {
+  int edges = 0;           ///< discontinuities > edge_jump with a valid, stable pixel each side
+  int direct = 0;          ///< of them, valid pixel next to valid pixel across the jump
+  double invalid_1px = 0;  ///< fraction of edges whose first pixel past the near surface is invalid
+  double invalid_2px = 0;  ///< ... and whose second is
+  double band_median_px = 0;  ///< median invalid run width [px]
+  /// Least-squares fit band_px = slope * f (1/z_near - 1/z_far) + intercept: slope is the
+  /// projector baseline [m] when this is the shadow side.
+  double slope = 0, intercept = 0;
+  double fit_r = 0;        ///< correlation of the fit
+};
+
+struct DepthStats {
+  int frames = 0;
+  long valid_px = 0;
+  double depth_step = 0;  ///< quantization step of the raw values [m]
+  std::vector<SigmaBin> sigma_by_depth, sigma_by_angle;
+  int windows = 0;        ///< accepted plane-fit windows
+  /// Every accepted window: median depth [m], incidence of its fitted plane [rad], sigma [m].
+  struct Window {
+    double z = 0, angle = 0, sigma = 0;
+  };
+  std::vector<Window> samples;
+  /// Residual correlation at lags 1..4 px (horizontal and vertical pooled).
+  std::array<double, 4> correlation{};
+  /// near_left: the near surface left of the gap (its right edge); near_right: the other.
+  EdgeSide near_left, near_right;
+  /// Projector: which side the shadows show it on, and the baseline along the camera's
+  /// x axis from the shadow side's fit [m], signed as NoiseParams (negative: image-left).
+  int projector_side = 0;  ///< +1 image-right, -1 image-left, 0 undecided
+  double baseline = 0;
+  /// Flying pixels: valid pixels next to an edge band lying between the two sides (more
+  /// than 10% of the gap from both); their share of the valid pixels next to bands, and
+  /// the median of (z - z_near) / (z_far - z_near).
+  double flying_rate = 0;
+  double flying_position = 0;
+  long band_neighbours = 0;
+  /// Interior holes: 4-connected invalid regions enclosed by valid pixels of one surface
+  /// (no discontinuity around them).
+  std::vector<int> hole_sizes;  ///< [px], every hole of every frame
+  double holes_per_frame = 0;
+};
+
+/// Statistics of `frames` (raw depth, 0 = invalid) with `intrinsics` (size and depth unit
+/// must match). Throws std::invalid_argument naming the problem: no frame, a size that
+/// differs from the intrinsics, no valid pixel, or too few flat windows to estimate sigma.
+[[nodiscard]] DepthStats depth_stats(const std::vector<io::DepthImage>& frames,
+                                     const io::Intrinsics& intrinsics,
+                                     const DepthStatsParams& params = {});
+
+}  // namespace linksight::sim
+
+#include <string>
+
+#include "linksight/sim/noise.hpp"
+
+namespace linksight::sim {
+
+/// The noise model's parameters fitted to measured statistics, and what could not be.
+struct NoiseFit {
+  NoiseParams params;              ///< `start` with every term the data determine replaced
+  std::vector<std::string> notes;  ///< one line per term kept from `start`, and why
+};
+
+/// Fits the model to `stats`:
+/// - axial a, c (sigma = a + c z^2) by least squares over the depth bins (windows under
+///   depth_bin_max_angle), then k_theta over the angle bins on what a + c z^2 leaves;
+/// - the projector baseline, signed, when the shadows decide a side;
+/// - holes per frame and their size.
+/// Terms the model has no parameter for yet (the residual correlation, the flying
+/// pixels' position) are reported in notes, as is anything left at `start`.
+[[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start);
+
+}  // namespace linksight::sim

@@ -1,0 +1,486 @@
+#include "linksight/sim/depth_stats.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <numbers>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace linksight::sim {
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  if (v.size() % 2) return *mid;
+  return 0.5 * (*mid + *std::max_element(v.begin(), mid));
+}
+
+// One discontinuity found on a row: widths in px, depths in m.
+struct Edge {
+  bool near_left;
+  int invalid;  // invalid pixels between the two stable sides
+  int span;     // every pixel between them (invalid or flying)
+  double z_near, z_far;
+};
+
+// Correlation sums at lags 1..4, pooled over windows and both directions.
+struct CorrelationSums {
+  std::array<double, 4> ab{}, aa{}, bb{};
+};
+
+class Frame {
+ public:
+  Frame(const io::DepthImage& img, const io::Intrinsics& K, const DepthStatsParams& p)
+      : img_(img), K_(K), p_(p), W_(img.width), H_(img.height) {}
+
+  [[nodiscard]] bool valid(int u, int v) const { return img_.data[idx(u, v)] != 0; }
+  [[nodiscard]] double z(int u, int v) const { return img_.data[idx(u, v)] * K_.depth_scale; }
+
+  // Plane fits over non-overlapping windows.
+  void windows(std::vector<DepthStats::Window>& out, CorrelationSums& corr) const {
+    const int n = p_.window;
+    std::vector<double> r(static_cast<std::size_t>(n * n));
+    std::vector<char> ok(static_cast<std::size_t>(n * n));
+    for (int v0 = 0; v0 + n <= H_; v0 += n) {
+      for (int u0 = 0; u0 + n <= W_; u0 += n) {
+        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        Eigen::Vector3d mean3 = Eigen::Vector3d::Zero();
+        Eigen::Matrix3d cov3 = Eigen::Matrix3d::Zero();
+        std::vector<double> zs;
+        int count = 0;
+        const double uc = u0 + 0.5 * (n - 1), vc = v0 + 0.5 * (n - 1);
+        for (int j = 0; j < n; ++j)
+          for (int i = 0; i < n; ++i) {
+            const bool has = valid(u0 + i, v0 + j);
+            ok[static_cast<std::size_t>(j * n + i)] = has;
+            if (!has) continue;
+            const double zz = z(u0 + i, v0 + j);
+            const Eigen::Vector3d x(1.0, u0 + i - uc, v0 + j - vc);
+            A += x * x.transpose();
+            b += x * zz;
+            const Eigen::Vector3d q((u0 + i - K_.cx) / K_.fx * zz, (v0 + j - K_.cy) / K_.fy * zz, zz);
+            mean3 += q;
+            cov3 += q * q.transpose();
+            zs.push_back(zz);
+            ++count;
+          }
+        if (count < p_.min_valid) continue;
+        // Axial residuals of z = c0 + c1 du + c2 dv: the noise along the optical axis.
+        const Eigen::Vector3d c = A.ldlt().solve(b);
+        double ss = 0, worst = 0;
+        for (int j = 0; j < n; ++j)
+          for (int i = 0; i < n; ++i) {
+            const std::size_t k = static_cast<std::size_t>(j * n + i);
+            if (!ok[k]) continue;
+            r[k] = z(u0 + i, v0 + j) - (c[0] + c[1] * (u0 + i - uc) + c[2] * (v0 + j - vc));
+            ss += r[k] * r[k];
+            worst = std::max(worst, std::abs(r[k]));
+          }
+        if (worst > p_.max_residual) continue;  // an edge or a flying pixel, not a surface
+        // The correlation is taken on the residuals of a quadratic surface: a plane leaves
+        // the curvature of real surfaces (clothing, skin), which would read as correlation.
+        Eigen::Matrix<double, 6, 6> Q = Eigen::Matrix<double, 6, 6>::Zero();
+        Eigen::Matrix<double, 6, 1> qb = Eigen::Matrix<double, 6, 1>::Zero();
+        auto basis = [&](int i, int j) {
+          const double x = (i - 0.5 * (n - 1)) / n, y = (j - 0.5 * (n - 1)) / n;
+          Eigen::Matrix<double, 6, 1> e;
+          e << 1.0, x, y, x * x, x * y, y * y;
+          return e;
+        };
+        for (int j = 0; j < n; ++j)
+          for (int i = 0; i < n; ++i) {
+            if (!ok[static_cast<std::size_t>(j * n + i)]) continue;
+            const Eigen::Matrix<double, 6, 1> e = basis(i, j);
+            Q += e * e.transpose();
+            qb += e * z(u0 + i, v0 + j);
+          }
+        const Eigen::Matrix<double, 6, 1> qc = Q.ldlt().solve(qb);
+        for (int j = 0; j < n; ++j)
+          for (int i = 0; i < n; ++i) {
+            const std::size_t k = static_cast<std::size_t>(j * n + i);
+            if (ok[k]) r[k] = z(u0 + i, v0 + j) - basis(i, j).dot(qc);
+          }
+        mean3 /= count;
+        cov3 = cov3 / count - mean3 * mean3.transpose();
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov3);
+        const Eigen::Vector3d normal = es.eigenvectors().col(0);  // smallest eigenvalue
+        const double cos_t = std::abs(normal.dot(mean3.normalized()));
+        out.push_back({median(zs), std::acos(std::min(1.0, cos_t)), std::sqrt(ss / (count - 3))});
+        for (int lag = 1; lag <= 4 && lag < n; ++lag)
+          for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+              const std::size_t k = static_cast<std::size_t>(j * n + i);
+              if (!ok[k]) continue;
+              const auto add = [&](std::size_t k2) {
+                if (!ok[k2]) return;
+                corr.ab[lag - 1] += r[k] * r[k2];
+                corr.aa[lag - 1] += r[k] * r[k];
+                corr.bb[lag - 1] += r[k2] * r[k2];
+              };
+              if (i + lag < n) add(k + static_cast<std::size_t>(lag));
+              if (j + lag < n) add(k + static_cast<std::size_t>(lag * n));
+            }
+      }
+    }
+  }
+
+  // Discontinuities along rows, between two stable valid pixels (each with a valid
+  // neighbour on its outer side within a quarter of the jump).
+  void edges(std::vector<Edge>& out, long& flying, long& neighbours,
+             std::vector<double>& positions) const {
+    const double calm = 0.25 * p_.edge_jump;
+    for (int v = 0; v < H_; ++v) {
+      int u = 1;
+      while (u < W_ - 2) {
+        // A: the last pixel of a stable surface before something else starts.
+        const bool a_stable = valid(u, v) && valid(u - 1, v) && std::abs(z(u, v) - z(u - 1, v)) < calm;
+        const bool a_ends = !valid(u + 1, v) || std::abs(z(u + 1, v) - z(u, v)) >= calm;
+        if (!(a_stable && a_ends)) {
+          ++u;
+          continue;
+        }
+        int b = -1;
+        for (int w = u + 1; w < W_ - 1 && w <= u + p_.max_band_px + 1; ++w) {
+          if (valid(w, v) && valid(w + 1, v) && std::abs(z(w + 1, v) - z(w, v)) < calm) {
+            b = w;
+            break;
+          }
+        }
+        if (b < 0) {
+          ++u;
+          continue;
+        }
+        const double za = z(u, v), zb = z(b, v);
+        if (std::abs(zb - za) > p_.edge_jump) {
+          Edge e{za < zb, 0, b - u - 1, std::min(za, zb), std::max(za, zb)};
+          long here_valid = 2;  // A and B
+          for (int w = u + 1; w < b; ++w) {
+            if (!valid(w, v)) {
+              ++e.invalid;
+              continue;
+            }
+            ++here_valid;
+            const double pos = (z(w, v) - e.z_near) / (e.z_far - e.z_near);
+            if (pos > 0.1 && pos < 0.9) {
+              ++flying;
+              positions.push_back(pos);
+            }
+          }
+          if (e.invalid > 0 || b == u + 1) neighbours += here_valid;
+          out.push_back(e);
+        }
+        u = b;
+      }
+    }
+  }
+
+  // Interior holes: invalid 4-connected regions not touching the border, enclosed by
+  // valid pixels of one surface (their depths within the edge jump).
+  void holes(std::vector<int>& sizes) const {
+    std::vector<char> seen(img_.data.size(), 0);
+    std::vector<int> stack;
+    for (int v0 = 0; v0 < H_; ++v0)
+      for (int u0 = 0; u0 < W_; ++u0) {
+        if (valid(u0, v0) || seen[idx(u0, v0)]) continue;
+        int size = 0;
+        bool border = false;
+        double lo = 1e9, hi = -1e9;
+        stack.assign(1, static_cast<int>(idx(u0, v0)));
+        seen[idx(u0, v0)] = 1;
+        while (!stack.empty()) {
+          const int k = stack.back();
+          stack.pop_back();
+          ++size;
+          const int u = k % W_, v = k / W_;
+          border = border || u == 0 || v == 0 || u == W_ - 1 || v == H_ - 1;
+          const int du[4] = {1, -1, 0, 0}, dv[4] = {0, 0, 1, -1};
+          for (int d = 0; d < 4; ++d) {
+            const int uu = u + du[d], vv = v + dv[d];
+            if (uu < 0 || vv < 0 || uu >= W_ || vv >= H_) continue;
+            const std::size_t kk = idx(uu, vv);
+            if (valid(uu, vv)) {
+              lo = std::min(lo, z(uu, vv));
+              hi = std::max(hi, z(uu, vv));
+            } else if (!seen[kk]) {
+              seen[kk] = 1;
+              stack.push_back(static_cast<int>(kk));
+            }
+          }
+        }
+        if (!border && size <= p_.max_hole_px && hi - lo <= p_.edge_jump) sizes.push_back(size);
+      }
+  }
+
+ private:
+  [[nodiscard]] std::size_t idx(int u, int v) const {
+    return static_cast<std::size_t>(v) * static_cast<std::size_t>(W_) + static_cast<std::size_t>(u);
+  }
+  const io::DepthImage& img_;
+  const io::Intrinsics& K_;
+  const DepthStatsParams& p_;
+  int W_, H_;
+};
+
+// Least-squares line y = slope x + intercept over the points with keep[i]; returns r.
+double fit_line(const std::vector<double>& x, const std::vector<double>& y,
+                const std::vector<char>& keep, double& slope, double& intercept) {
+  double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (!keep[i]) continue;
+    n += 1, sx += x[i], sy += y[i], sxx += x[i] * x[i], sxy += x[i] * y[i], syy += y[i] * y[i];
+  }
+  if (n < 2) return 0;
+  const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n, cxy = sxy - sx * sy / n;
+  if (!(vx > 0)) return 0;
+  slope = cxy / vx;
+  intercept = (sy - slope * sx) / n;
+  return vy > 0 ? cxy / std::sqrt(vx * vy) : 0;
+}
+
+EdgeSide side_of(const std::vector<Edge>& edges, bool near_left, double f) {
+  EdgeSide s;
+  std::vector<double> widths, x, y;
+  int one = 0, two = 0;
+  for (const Edge& e : edges) {
+    if (e.near_left != near_left) continue;
+    ++s.edges;
+    s.direct += e.invalid == 0;
+    one += e.invalid >= 1;
+    two += e.invalid >= 2;
+    widths.push_back(e.invalid);
+    x.push_back(f * (1.0 / e.z_near - 1.0 / e.z_far));
+    y.push_back(e.span);
+  }
+  if (s.edges == 0) return s;
+  const double n = s.edges;
+  s.invalid_1px = one / n;
+  s.invalid_2px = two / n;
+  s.band_median_px = median(widths);
+  // Shadows cut short (a narrow caster, a shadow landing on a third surface, an object's
+  // top or bottom corner) lie below the line: fit, drop points beyond 3 robust sigmas,
+  // fit again.
+  std::vector<char> keep(x.size(), 1);
+  s.fit_r = fit_line(x, y, keep, s.slope, s.intercept);
+  std::vector<double> res(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) res[i] = std::abs(y[i] - s.slope * x[i] - s.intercept);
+  const double mad = median(res);
+  if (mad > 0) {
+    for (std::size_t i = 0; i < x.size(); ++i) keep[i] = res[i] <= 3.0 * 1.4826 * mad;
+    s.fit_r = fit_line(x, y, keep, s.slope, s.intercept);
+  }
+  return s;
+}
+
+}  // namespace
+
+void DepthStatsParams::validate() const {
+  auto bad = [](const std::string& field, const std::string& rule) {
+    throw std::invalid_argument("DepthStatsParams." + field + ": " + rule);
+  };
+  if (window < 5) bad("window", "must be >= 5 px");
+  if (min_valid < 4 || min_valid > window * window) bad("min_valid", "must be in [4, window^2]");
+  if (!(max_residual > 0)) bad("max_residual", "must be > 0 m");
+  if (!(edge_jump > 0)) bad("edge_jump", "must be > 0 m");
+  if (max_band_px < 1) bad("max_band_px", "must be >= 1");
+  if (max_hole_px < 1) bad("max_hole_px", "must be >= 1");
+  for (const auto* e : {&depth_edges, &angle_edges}) {
+    if (e->size() < 2 || !std::is_sorted(e->begin(), e->end()) ||
+        std::adjacent_find(e->begin(), e->end()) != e->end())
+      bad(e == &depth_edges ? "depth_edges" : "angle_edges", "need >= 2 increasing edges");
+  }
+}
+
+DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intrinsics& K,
+                       const DepthStatsParams& p) {
+  p.validate();
+  if (frames.empty()) throw std::invalid_argument("depth statistics: no frames");
+  DepthStats s;
+  s.frames = static_cast<int>(frames.size());
+  CorrelationSums corr;
+  std::vector<Edge> edges;
+  long flying = 0;
+  std::vector<double> positions;
+  std::array<long, 256> diffs{};
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const io::DepthImage& img = frames[f];
+    if (img.width != K.width || img.height != K.height)
+      throw std::invalid_argument("frame " + std::to_string(f) + " is " +
+                                  std::to_string(img.width) + "x" + std::to_string(img.height) +
+                                  ", the intrinsics say " + std::to_string(K.width) + "x" +
+                                  std::to_string(K.height));
+    const Frame fr(img, K, p);
+    for (std::uint16_t d : img.data) s.valid_px += d != 0;
+    // Neighbour differences of raw values, for the quantization step.
+    for (int v = 0; v < img.height; ++v)
+      for (int u = 0; u + 1 < img.width; ++u) {
+        const int a = img.data[static_cast<std::size_t>(v) * img.width + u];
+        const int b = img.data[static_cast<std::size_t>(v) * img.width + u + 1];
+        const int d = std::abs(a - b);
+        if (a && b && d > 0 && d < 256) ++diffs[static_cast<std::size_t>(d)];
+      }
+    fr.windows(s.samples, corr);
+    fr.edges(edges, flying, s.band_neighbours, positions);
+    fr.holes(s.hole_sizes);
+  }
+  if (s.valid_px == 0) throw std::invalid_argument("depth statistics: no valid pixel in any frame");
+  s.windows = static_cast<int>(s.samples.size());
+  if (s.windows < 10)
+    throw std::invalid_argument("depth statistics: " + std::to_string(s.windows) +
+                                " flat windows of " + std::to_string(p.window) + "x" +
+                                std::to_string(p.window) +
+                                " px; need at least 10 to estimate the noise (a recording too "
+                                "small, or without smooth surfaces)");
+
+  // Quantization: the gcd of the differences that are common (>= 0.5% of them).
+  const long total = std::accumulate(diffs.begin(), diffs.end(), 0L);
+  int step = 0;
+  for (int d = 1; d < 256; ++d)
+    if (diffs[static_cast<std::size_t>(d)] * 200 >= total) step = std::gcd(step, d);
+  s.depth_step = std::max(step, 1) * K.depth_scale;
+
+  auto bins = [&](const std::vector<double>& edges_, bool by_depth) {
+    std::vector<SigmaBin> out;
+    for (std::size_t b = 0; b + 1 < edges_.size(); ++b) {
+      SigmaBin bin;
+      bin.lo = edges_[b];
+      bin.hi = edges_[b + 1];
+      std::vector<double> sig, at;
+      for (const DepthStats::Window& w : s.samples) {
+        const double x = by_depth ? w.z : w.angle;
+        if (x < bin.lo || x >= bin.hi) continue;
+        if (by_depth && w.angle >= p.depth_bin_max_angle) continue;
+        sig.push_back(w.sigma);
+        at.push_back(x);
+      }
+      bin.windows = static_cast<int>(sig.size());
+      bin.sigma = median(sig);
+      bin.centre = median(at);
+      out.push_back(bin);
+    }
+    return out;
+  };
+  s.sigma_by_depth = bins(p.depth_edges, true);
+  s.sigma_by_angle = bins(p.angle_edges, false);
+  for (int l = 0; l < 4; ++l)
+    s.correlation[static_cast<std::size_t>(l)] =
+        corr.aa[l] > 0 && corr.bb[l] > 0 ? corr.ab[l] / std::sqrt(corr.aa[l] * corr.bb[l]) : 0;
+
+  s.near_left = side_of(edges, true, K.fx);
+  s.near_right = side_of(edges, false, K.fx);
+  // The shadow side: its band widths grow with the disparity gap; the other side's do not.
+  // Near surface left of the gap -> shadow on its image-right -> projector image-left.
+  const EdgeSide& l = s.near_left;
+  const EdgeSide& r = s.near_right;
+  constexpr int kMinEdges = 20;
+  constexpr double kMinSlope = 0.005;  // [m]: below 5 mm no baseline is seen
+  // Decided by how well the width follows the gap (the correlation of the fit), not by the
+  // slope alone: edge bands on the other side also widen somewhat with the gap.
+  constexpr double kMinFitR = 0.3;
+  auto shadow_side = [&](const EdgeSide& a, const EdgeSide& other) {
+    return a.edges >= kMinEdges && a.slope > kMinSlope && a.fit_r >= kMinFitR &&
+           a.fit_r > 2 * std::max(other.fit_r, 0.0);
+  };
+  if (shadow_side(l, r)) {
+    s.projector_side = -1;
+    s.baseline = -l.slope;
+  } else if (shadow_side(r, l)) {
+    s.projector_side = +1;
+    s.baseline = r.slope;
+  }
+  s.flying_rate = s.band_neighbours > 0 ? static_cast<double>(flying) / s.band_neighbours : 0;
+  s.flying_position = median(positions);
+  s.holes_per_frame = static_cast<double>(s.hole_sizes.size()) / s.frames;
+  return s;
+}
+
+}  // namespace linksight::sim
+
+namespace linksight::sim {
+
+NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
+  NoiseFit fit;
+  fit.params = start;
+  AxialNoise& ax = fit.params.axial;
+  // Eq. of AxialNoise: sigma = a + c z^2 (+ the angle term, kept out by the depth bins'
+  // angle limit). Weighted by the windows in each bin.
+  double s1 = 0, sz = 0, szz = 0, sy = 0, szy = 0;
+  int bins = 0;
+  for (const SigmaBin& b : s.sigma_by_depth) {
+    if (b.windows < 5) continue;
+    const double w = b.windows, x = b.centre * b.centre;
+    s1 += w, sz += w * x, szz += w * x * x, sy += w * b.sigma, szy += w * x * b.sigma;
+    ++bins;
+  }
+  if (bins >= 2 && szz * s1 - sz * sz > 0) {
+    double c = (s1 * szy - sz * sy) / (s1 * szz - sz * sz);
+    double a = (sy - c * sz) / s1;
+    if (c < 0) c = 0, a = sy / s1;        // no growth with depth seen: constant sigma
+    if (a < 0) a = 0, c = szy / szz;      // through the origin
+    ax.a = a;
+    ax.c = c;
+  } else if (bins == 1) {
+    ax.a = sy / s1 - ax.c * sz / s1;  // one depth: keep c, fit a
+    if (ax.a < 0) ax.a = 0;
+    fit.notes.push_back("axial.c_per_m kept (" + std::to_string(ax.c) +
+                        "): windows at one depth only");
+  } else {
+    fit.notes.push_back("axial a_m, c_per_m kept: no depth bin with 5 flat windows");
+  }
+  // The angle term: k_theta / sqrt(z) * theta^2 / (pi/2 - theta)^2 on what a + c z^2 leaves.
+  double sgg = 0, sge = 0;
+  for (const SigmaBin& b : s.sigma_by_angle) {
+    if (b.windows < 5) continue;
+    std::vector<double> excess, g;
+    for (const DepthStats::Window& w : s.samples) {
+      if (w.angle < b.lo || w.angle >= b.hi) continue;
+      const double th = std::min(w.angle, ax.theta_cap);
+      excess.push_back(w.sigma - (ax.a + ax.c * w.z * w.z));
+      g.push_back(th * th / ((std::numbers::pi / 2 - th) * (std::numbers::pi / 2 - th)) /
+                  std::sqrt(w.z));
+    }
+    const double gb = median(g), eb = median(excess);
+    sgg += b.windows * gb * gb;
+    sge += b.windows * gb * eb;
+  }
+  if (sgg > 0) {
+    ax.k_theta = std::max(0.0, sge / sgg);
+  } else {
+    fit.notes.push_back("axial.k_theta kept: no angle bin with 5 flat windows");
+  }
+  if (s.projector_side != 0) {
+    fit.params.shadow.baseline = s.baseline;
+  } else {
+    fit.notes.push_back("shadow.baseline_m kept (" + std::to_string(start.shadow.baseline) +
+                        "): the shadows decide no side (too few edges, or widths that do "
+                        "not follow the depth gap)");
+  }
+  if (!s.hole_sizes.empty()) {
+    fit.params.dropouts.hole_rate = s.holes_per_frame;
+    std::vector<double> sizes(s.hole_sizes.begin(), s.hole_sizes.end());
+    std::sort(sizes.begin(), sizes.end());
+    const double p90 = sizes[static_cast<std::size_t>(0.9 * static_cast<double>(sizes.size() - 1))];
+    fit.params.dropouts.hole_radius_px = std::max(1.0, std::sqrt(p90 / std::numbers::pi));
+  }
+  char line[160];
+  std::snprintf(line, sizeof line,
+                "residual correlation %.2f / %.2f / %.2f at 1 / 2 / 3 px: not modelled yet "
+                "(the model's noise is white)",
+                s.correlation[0], s.correlation[1], s.correlation[2]);
+  fit.notes.emplace_back(line);
+  std::snprintf(line, sizeof line,
+                "flying pixels %.1f%% of band neighbours at %.2f of the gap: edges.p_flying "
+                "kept, the model draws positions uniformly",
+                100 * s.flying_rate, s.flying_position);
+  fit.notes.emplace_back(line);
+  return fit;
+}
+
+}  // namespace linksight::sim

@@ -1,0 +1,183 @@
+// linksight calibrate-noise: measures a depth camera's noise and artefacts on a real
+// recording (16-bit depth PNGs of any static or slowly moving scene) and fits the
+// simulated SR300's noise model to them. Prints a report, writes the `noise:` block a
+// scene file accepts as it is, and (with --report) the statistics as JSON.
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "commands.hpp"
+#include "format.hpp"
+#include "linksight/io/atomic_file.hpp"
+#include "linksight/io/error.hpp"
+#include "linksight/io/frames.hpp"
+#include "linksight/sim/depth_stats.hpp"
+
+namespace linksight::cli {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr double kDeg = 180.0 / 3.14159265358979323846;
+
+struct CalibrateOptions {
+  std::string input, intrinsics, out, report;
+  bool quiet = false;
+};
+
+std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames) {
+  const sim::NoiseParams& n = fit.params;
+  std::ostringstream y;
+  y << std::setprecision(10);
+  y << "# linksight calibrate-noise: fitted to " << frames << " frames of " << source << "\n";
+  for (const std::string& note : fit.notes) y << "# note: " << note << "\n";
+  y << "noise:\n"
+    << "  preset: sr300\n"
+    << "  axial: {a_m: " << n.axial.a << ", c_per_m: " << n.axial.c
+    << ", k_theta: " << n.axial.k_theta << "}\n"
+    << "  shadow: {baseline_m: " << n.shadow.baseline << "}\n"
+    << "  dropouts: {hole_rate: " << n.dropouts.hole_rate
+    << ", hole_radius_px: " << n.dropouts.hole_radius_px << "}\n";
+  return y.str();
+}
+
+nlohmann::json stats_json(const sim::DepthStats& s) {
+  auto bins = [](const std::vector<sim::SigmaBin>& v, double unit) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const auto& b : v)
+      a.push_back({{"lo", b.lo * unit}, {"hi", b.hi * unit}, {"windows", b.windows},
+                   {"sigma_mm", b.sigma * 1e3}, {"centre", b.centre * unit}});
+    return a;
+  };
+  auto side = [](const sim::EdgeSide& e) {
+    return nlohmann::json{{"edges", e.edges},
+                          {"direct_jumps", e.direct},
+                          {"invalid_at_1px", e.invalid_1px},
+                          {"invalid_at_2px", e.invalid_2px},
+                          {"band_median_px", e.band_median_px},
+                          {"fit_slope_mm", e.slope * 1e3},
+                          {"fit_intercept_px", e.intercept},
+                          {"fit_r", e.fit_r}};
+  };
+  return {{"frames", s.frames},
+          {"valid_px", s.valid_px},
+          {"depth_step_mm", s.depth_step * 1e3},
+          {"windows", s.windows},
+          {"sigma_by_depth_m", bins(s.sigma_by_depth, 1.0)},
+          {"sigma_by_angle_deg", bins(s.sigma_by_angle, kDeg)},
+          {"residual_correlation_lag_1_to_4_px", s.correlation},
+          {"edges_near_left", side(s.near_left)},
+          {"edges_near_right", side(s.near_right)},
+          {"projector_side", s.projector_side},
+          {"baseline_mm", s.baseline * 1e3},
+          {"flying_rate", s.flying_rate},
+          {"flying_position", s.flying_position},
+          {"holes_per_frame", s.holes_per_frame},
+          {"hole_sizes_px", s.hole_sizes}};
+}
+
+void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFit& fit) {
+  os << std::fixed;
+  os << s.frames << " frames, " << s.valid_px << " valid pixels, " << s.windows
+     << " flat 15x15 windows; depth step " << std::setprecision(3) << s.depth_step * 1e3
+     << " mm\n\nplane-fit sigma by depth (incidence < 30 deg):\n";
+  auto bins = [&](const std::vector<sim::SigmaBin>& v, double unit, const char* what) {
+    for (const auto& b : v) {
+      if (b.windows == 0) continue;
+      os << "  " << what << " [" << std::setprecision(unit > 1 ? 0 : 2) << b.lo * unit << ", "
+         << b.hi * unit << ")  windows " << std::setw(5) << b.windows << "  sigma_mm "
+         << std::setprecision(2) << b.sigma * 1e3 << "  model_mm "
+         << fit.params.axial.sigma(unit > 1 ? 0.7 : b.centre, unit > 1 ? b.centre : 0.0) * 1e3
+         << "\n";
+    }
+  };
+  bins(s.sigma_by_depth, 1.0, "z_m");
+  os << "plane-fit sigma by incidence (all depths; model at 0.7 m):\n";
+  bins(s.sigma_by_angle, kDeg, "deg");
+  os << std::setprecision(2) << "residual correlation at 1..4 px: " << s.correlation[0] << " "
+     << s.correlation[1] << " " << s.correlation[2] << " " << s.correlation[3] << "\n\n";
+  auto side = [&](const char* name, const sim::EdgeSide& e) {
+    os << "  " << name << ": " << e.edges << " edges, " << e.direct << " direct jumps, "
+       << "first/second pixel past the near surface invalid " << 100 * e.invalid_1px << "% / "
+       << 100 * e.invalid_2px << "%, median band " << std::setprecision(1) << e.band_median_px
+       << " px, width = " << e.slope * 1e3 << " mm x f(1/z1 - 1/z2) + " << e.intercept
+       << " px (r " << std::setprecision(2) << e.fit_r << ")\n";
+  };
+  os << "depth discontinuities > 20 mm, scanning rows:\n";
+  side("near surface left of the gap ", s.near_left);
+  side("near surface right of the gap", s.near_right);
+  os << std::setprecision(1) << "projector: "
+     << (s.projector_side < 0   ? "image-left"
+         : s.projector_side > 0 ? "image-right"
+                                : "undecided")
+     << ", baseline " << s.baseline * 1e3 << " mm\n"
+     << "flying pixels: " << 100 * s.flying_rate << "% of the valid pixels next to a band, at "
+     << std::setprecision(2) << s.flying_position << " of the way from near to far\n";
+  std::vector<int> h = s.hole_sizes;
+  std::sort(h.begin(), h.end());
+  os << std::setprecision(1) << "interior holes: " << s.holes_per_frame << " per frame";
+  if (!h.empty())
+    os << ", median " << h[h.size() / 2] << " px, p90 " << h[(h.size() - 1) * 9 / 10] << " px";
+  os << "\n\nnotes:\n";
+  for (const std::string& n : fit.notes) os << "  " << n << "\n";
+}
+
+int run_calibrate(const CalibrateOptions& o) {
+  const io::Intrinsics K = io::read_intrinsics(o.intrinsics);
+  std::vector<io::DepthImage> frames;
+  for (const fs::path& p : io::list_frames(o.input)) {
+    if (!io::is_depth_png(p))
+      throw io::InputError(p.string() + ": calibrate-noise reads 16-bit depth PNGs only");
+    frames.push_back(io::read_depth_png(p));
+    const io::DepthImage& f = frames.back();
+    if (f.width != K.width || f.height != K.height)
+      throw io::InputError(p.string() + ": " + std::to_string(f.width) + "x" +
+                           std::to_string(f.height) + " does not match the intrinsics (" +
+                           o.intrinsics + ": " + std::to_string(K.width) + "x" +
+                           std::to_string(K.height) + ")");
+  }
+  sim::DepthStats stats;
+  try {
+    stats = sim::depth_stats(frames, K);
+  } catch (const std::invalid_argument& e) {
+    throw io::InputError(o.input + ": " + e.what());
+  }
+  const sim::NoiseFit fit = sim::fit_noise(stats, sim::NoiseParams::sr300());
+  io::StagedFiles out;
+  out.open(o.out) << noise_yaml(fit, o.input, stats.frames);
+  if (!o.report.empty()) {
+    std::error_code ec;
+    fs::create_directories(o.report, ec);
+    if (ec) throw io::InputError(o.report + ": cannot create report directory: " + ec.message());
+    std::ostringstream text;
+    print_report(text, stats, fit);
+    out.open(fs::path(o.report) / "report.txt") << text.str();
+    out.open(fs::path(o.report) / "stats.json") << stats_json(stats).dump(2) << "\n";
+  }
+  out.commit();
+  if (!o.quiet) {
+    print_report(std::cout, stats, fit);
+    std::cout << "\nwrote " << o.out << " (a noise: block for a scene file)";
+    if (!o.report.empty()) std::cout << ", " << o.report << "/report.txt, stats.json";
+    std::cout << "\n";
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+Runner add_calibrate_noise(CLI::App& app) {
+  auto o = std::make_shared<CalibrateOptions>();
+  app.add_option("--input", o->input, "directory of 16-bit depth PNGs (a real recording)")
+      ->required();
+  app.add_option("--intrinsics", o->intrinsics, "intrinsics.json of the camera")->required();
+  app.add_option("--out", o->out, "the fitted noise: block (YAML)")->required();
+  app.add_option("--report", o->report, "directory for report.txt and stats.json");
+  app.add_flag("--quiet", o->quiet, "print nothing on success");
+  return [o] { return run_calibrate(*o); };
+}
+
+}  // namespace linksight::cli
