@@ -37,7 +37,8 @@ std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int 
   y << "noise:\n"
     << "  preset: sr300\n"
     << "  axial: {a_m: " << n.axial.a << ", c_per_m: " << n.axial.c
-    << ", k_theta: " << n.axial.k_theta << "}\n"
+    << ", k_theta: " << n.axial.k_theta << ", correlation_px: " << n.axial.correlation_px
+    << "}\n"
     << "  shadow: {baseline_m: " << n.shadow.baseline << "}\n"
     << "  dropouts: {hole_rate: " << n.dropouts.hole_rate
     << ", hole_radius_px: " << n.dropouts.hole_radius_px << "}\n";
@@ -84,13 +85,15 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
   os << s.frames << " frames, " << s.valid_px << " valid pixels, " << s.windows
      << " flat 15x15 windows; depth step " << std::setprecision(3) << s.depth_step * 1e3
      << " mm\n\nplane-fit sigma by depth (incidence < 30 deg):\n";
+  // The fitted model as the plane fit would read it (its correlation lowers the reading).
+  const double read = std::sqrt(sim::window_response(fit.params.axial.correlation_px).variance_factor);
   auto bins = [&](const std::vector<sim::SigmaBin>& v, double unit, const char* what) {
     for (const auto& b : v) {
       if (b.windows == 0) continue;
       os << "  " << what << " [" << std::setprecision(unit > 1 ? 0 : 2) << b.lo * unit << ", "
          << b.hi * unit << ")  windows " << std::setw(5) << b.windows << "  sigma_mm "
-         << std::setprecision(2) << b.sigma * 1e3 << "  model_mm "
-         << fit.params.axial.sigma(unit > 1 ? 0.7 : b.centre, unit > 1 ? b.centre : 0.0) * 1e3
+         << std::setprecision(2) << b.sigma * 1e3 << "  fitted_model_mm "
+         << read * fit.params.axial.sigma(unit > 1 ? 0.7 : b.centre, unit > 1 ? b.centre : 0.0) * 1e3
          << "\n";
     }
   };

@@ -114,6 +114,9 @@ class Frame {
         const Eigen::Vector3d normal = es.eigenvectors().col(0);  // smallest eigenvalue
         const double cos_t = std::abs(normal.dot(mean3.normalized()));
         out.push_back({median(zs), std::acos(std::min(1.0, cos_t)), std::sqrt(ss / (count - 3))});
+        // Correlation on windows seen nearly face-on only: on a slanted surface the lateral
+        // noise adds depth noise of its own, white, which would dilute the reading.
+        if (out.back().angle >= p_.depth_bin_max_angle) continue;
         for (int lag = 1; lag <= 4 && lag < n; ++lag)
           for (int j = 0; j < n; ++j)
             for (int i = 0; i < n; ++i) {
@@ -405,18 +408,90 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
 
 namespace linksight::sim {
 
-NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
+WindowResponse window_response(double correlation_px, int window) {
+  const int n = window, N = n * n;
+  // Cov of the noise: exp(-d^2 / (4 s^2)), the correlation of a Gaussian-blurred white field.
+  Eigen::MatrixXd C = Eigen::MatrixXd::Identity(N, N);
+  if (correlation_px > 0) {
+    const double k = 1.0 / (4 * correlation_px * correlation_px);
+    for (int a = 0; a < N; ++a)
+      for (int b = 0; b < N; ++b) {
+        const double du = a % n - b % n, dv = a / n - b / n;
+        C(a, b) = std::exp(-(du * du + dv * dv) * k);
+      }
+  }
+  auto residual_maker = [&](int terms) {
+    Eigen::MatrixXd X(N, terms);
+    for (int a = 0; a < N; ++a) {
+      const double x = (a % n - 0.5 * (n - 1)) / n, y = (a / n - 0.5 * (n - 1)) / n;
+      const double all[6] = {1.0, x, y, x * x, x * y, y * y};
+      for (int t = 0; t < terms; ++t) X(a, t) = all[t];
+    }
+    const Eigen::MatrixXd H = X * (X.transpose() * X).ldlt().solve(X.transpose());
+    return Eigen::MatrixXd(Eigen::MatrixXd::Identity(N, N) - H);
+  };
+  WindowResponse r;
+  // The residual makers are symmetric and idempotent: E|P x|^2 = trace(P C P) = trace(C P).
+  const Eigen::MatrixXd P = residual_maker(3);  // the plane fit behind sigma
+  r.variance_factor = C.cwiseProduct(P).sum() / (N - 3);
+  // Cov of the quadratic fit's residuals, Q C Q, entry by entry where needed.
+  const Eigen::MatrixXd Q = residual_maker(6);
+  const Eigen::MatrixXd CQ = C * Q;
+  auto R = [&](int a, int b) { return Q.col(a).dot(CQ.col(b)); };
+  Eigen::VectorXd diag(N);
+  for (int a = 0; a < N; ++a) diag[a] = R(a, a);
+  for (int lag = 1; lag <= 4; ++lag) {
+    double ab = 0, aa = 0, bb = 0;
+    for (int a = 0; a < N; ++a) {
+      const int u = a % n, v = a / n;
+      if (u + lag < n) ab += R(a, a + lag), aa += diag[a], bb += diag[a + lag];
+      if (v + lag < n) ab += R(a, a + lag * n), aa += diag[a], bb += diag[a + lag * n];
+    }
+    r.correlation[static_cast<std::size_t>(lag - 1)] = ab / std::sqrt(aa * bb);
+  }
+  return r;
+}
+
+NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, int window) {
   NoiseFit fit;
   fit.params = start;
   AxialNoise& ax = fit.params.axial;
+  // The correlation width: bisection on the lag-1 reading (it grows with the width),
+  // checked against lag 2 in the notes.
+  ax.correlation_px = 0;
+  double variance_factor = window_response(0, window).variance_factor;
+  const double rho1 = s.correlation[0];
+  if (rho1 > window_response(0.3, window).correlation[0]) {
+    double lo = 0.3, hi = 6.0;
+    if (rho1 >= window_response(hi, window).correlation[0]) {
+      lo = hi;
+    } else {
+      for (int it = 0; it < 24; ++it) {  // to 4e-7 px
+        const double mid = 0.5 * (lo + hi);
+        (window_response(mid, window).correlation[0] < rho1 ? lo : hi) = mid;
+      }
+    }
+    ax.correlation_px = 0.5 * (lo + hi);
+    const WindowResponse wr = window_response(ax.correlation_px, window);
+    variance_factor = wr.variance_factor;
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "correlation width %.2f px from the lag-1 correlation %.2f; the model then "
+                  "reads %.2f / %.2f at lags 2 / 3 (measured %.2f / %.2f)",
+                  ax.correlation_px, rho1, wr.correlation[1], wr.correlation[2],
+                  s.correlation[1], s.correlation[2]);
+    fit.notes.emplace_back(line);
+  }
+  // The plane fit reads sigma * sqrt(variance_factor): undo it.
+  const double unbias = 1.0 / std::sqrt(variance_factor);
   // Eq. of AxialNoise: sigma = a + c z^2 (+ the angle term, kept out by the depth bins'
   // angle limit). Weighted by the windows in each bin.
   double s1 = 0, sz = 0, szz = 0, sy = 0, szy = 0;
   int bins = 0;
   for (const SigmaBin& b : s.sigma_by_depth) {
     if (b.windows < 5) continue;
-    const double w = b.windows, x = b.centre * b.centre;
-    s1 += w, sz += w * x, szz += w * x * x, sy += w * b.sigma, szy += w * x * b.sigma;
+    const double w = b.windows, x = b.centre * b.centre, y = b.sigma * unbias;
+    s1 += w, sz += w * x, szz += w * x * x, sy += w * y, szy += w * x * y;
     ++bins;
   }
   if (bins >= 2 && szz * s1 - sz * sz > 0) {
@@ -442,7 +517,7 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
     for (const DepthStats::Window& w : s.samples) {
       if (w.angle < b.lo || w.angle >= b.hi) continue;
       const double th = std::min(w.angle, ax.theta_cap);
-      excess.push_back(w.sigma - (ax.a + ax.c * w.z * w.z));
+      excess.push_back(w.sigma * unbias - (ax.a + ax.c * w.z * w.z));
       g.push_back(th * th / ((std::numbers::pi / 2 - th) * (std::numbers::pi / 2 - th)) /
                   std::sqrt(w.z));
     }
@@ -470,11 +545,6 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
     fit.params.dropouts.hole_radius_px = std::max(1.0, std::sqrt(p90 / std::numbers::pi));
   }
   char line[160];
-  std::snprintf(line, sizeof line,
-                "residual correlation %.2f / %.2f / %.2f at 1 / 2 / 3 px: not modelled yet "
-                "(the model's noise is white)",
-                s.correlation[0], s.correlation[1], s.correlation[2]);
-  fit.notes.emplace_back(line);
   std::snprintf(line, sizeof line,
                 "flying pixels %.1f%% of band neighbours at %.2f of the gap: edges.p_flying "
                 "kept, the model draws positions uniformly",

@@ -44,6 +44,8 @@ void NoiseParams::validate() const {
   check(axial.c >= 0 && std::isfinite(axial.c), "axial.c", axial.c, "must be >= 0");
   check(axial.k_theta >= 0 && std::isfinite(axial.k_theta), "axial.k_theta", axial.k_theta,
         "must be >= 0");
+  check(axial.correlation_px >= 0 && axial.correlation_px <= 10, "axial.correlation_px",
+        axial.correlation_px, "must be in [0, 10] px");
   check(axial.theta_cap >= 0 && axial.theta_cap < half_pi, "axial.theta_cap", axial.theta_cap,
         "must be in [0, pi/2)");
   check(lateral.sigma_px >= 0 && lateral.sigma_px <= 10, "lateral.sigma_px", lateral.sigma_px,

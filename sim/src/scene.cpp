@@ -342,13 +342,15 @@ void read_noise(const Reader& r, const YAML::Node& n, NoiseParams& noise) {
   noise = NoiseParams::preset(r.choice(n, "noise", "preset", "sr300", {"off", "sr300"}));
   constexpr double deg = std::numbers::pi / 180.0;
   if (const YAML::Node a = n["axial"]) {
-    r.only(a, "noise.axial", {"enabled", "a_m", "c_per_m", "k_theta", "theta_cap_deg"});
+    r.only(a, "noise.axial",
+           {"enabled", "a_m", "c_per_m", "k_theta", "theta_cap_deg", "correlation_px"});
     AxialNoise& x = noise.axial;
     x.enabled = r.boolean(a, "noise.axial", "enabled", true);
     x.a = r.number(a, "noise.axial", "a_m", x.a, 0.0, 0.1);
     x.c = r.number(a, "noise.axial", "c_per_m", x.c, 0.0, 0.1);
     x.k_theta = r.number(a, "noise.axial", "k_theta", x.k_theta, 0.0, 0.1);
     x.theta_cap = r.number(a, "noise.axial", "theta_cap_deg", x.theta_cap / deg, 0.0, 89.9) * deg;
+    x.correlation_px = r.number(a, "noise.axial", "correlation_px", x.correlation_px, 0.0, 10.0);
   }
   if (const YAML::Node l = n["lateral"]) {
     r.only(l, "noise.lateral", {"enabled", "sigma_px"});

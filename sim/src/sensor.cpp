@@ -311,6 +311,7 @@ struct Sensor::Impl {
   std::vector<float> cos_c, cos_p, reflect;
   std::vector<std::uint8_t> lit, hole, label_no_occluders;
   std::vector<bool> occluder_on;  // whether each occluder's instance is enabled
+  std::vector<float> white, blur_rows, field;  // correlated axial noise (see render)
   Eigen::AlignedBox3d component_box;  // a component's bounds in its own frame K
   std::vector<Eigen::AlignedBox3d> occluder_box;  // each occluder's bounds in its own frame
   SensorTimes times;
@@ -802,6 +803,66 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
             m.hole[static_cast<std::size_t>(v) * W + u] = 1;
     }
   }
+  // Correlated axial noise: a white field over the box of hit pixels (plus the kernel's
+  // reach), blurred row then column by a normalized Gaussian. Each white value depends on
+  // its pixel's key only, so the field is the same for any thread count.
+  const bool correlated = noise.axial.enabled && noise.axial.correlation_px > 0;
+  int bu0 = W, bu1 = -1, bv0 = H, bv1 = -1;
+  if (correlated) {
+    for (int v = 0; v < H; ++v)
+      for (int u = 0; u < W; ++u)
+        if (out.depth_clean_m[static_cast<std::size_t>(v) * W + u] > 0) {
+          bu0 = std::min(bu0, u), bu1 = std::max(bu1, u);
+          bv0 = std::min(bv0, v), bv1 = std::max(bv1, v);
+        }
+  }
+  if (correlated && bu1 >= 0) {
+    const double s = noise.axial.correlation_px;
+    const int R = static_cast<int>(std::ceil(3 * s));
+    // Each 1-D pass scaled to sum k^2 = 1 keeps unit variance (at the image border the
+    // kernel is cut and the variance a little lower).
+    std::vector<double> g(static_cast<std::size_t>(2 * R + 1));
+    double sum2 = 0;
+    for (int i = -R; i <= R; ++i) {
+      g[static_cast<std::size_t>(i + R)] = std::exp(-0.5 * i * i / (s * s));
+      sum2 += g[static_cast<std::size_t>(i + R)] * g[static_cast<std::size_t>(i + R)];
+    }
+    std::vector<float> kernel(g.size());
+    for (std::size_t i = 0; i < g.size(); ++i) kernel[i] = static_cast<float>(g[i] / std::sqrt(sum2));
+    const int fu0 = std::max(0, bu0 - R), fu1 = std::min(W - 1, bu1 + R);
+    const int fv0 = std::max(0, bv0 - R), fv1 = std::min(H - 1, bv1 + R);
+    const int fw = fu1 - fu0 + 1, fh = fv1 - fv0 + 1;
+    m.white.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
+    m.blur_rows.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
+    m.field.assign(n, 0.0F);
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int v = fv0; v <= fv1; ++v)
+      for (int u = fu0; u <= fu1; ++u)
+        m.white[static_cast<std::size_t>(v - fv0) * fw + (u - fu0)] = static_cast<float>(
+            normal(pixel_key(frame_seed, static_cast<std::size_t>(v) * W + u), kAxial));
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int y = 0; y < fh; ++y)
+      for (int x = 0; x < fw; ++x) {
+        float acc = 0;
+        for (int i = -R; i <= R; ++i) {
+          const int xx = x + i;
+          if (xx >= 0 && xx < fw)
+            acc += kernel[static_cast<std::size_t>(i + R)] * m.white[static_cast<std::size_t>(y) * fw + xx];
+        }
+        m.blur_rows[static_cast<std::size_t>(y) * fw + x] = acc;
+      }
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int y = 0; y < fh; ++y)
+      for (int x = 0; x < fw; ++x) {
+        float acc = 0;
+        for (int i = -R; i <= R; ++i) {
+          const int yy = y + i;
+          if (yy >= 0 && yy < fh)
+            acc += kernel[static_cast<std::size_t>(i + R)] * m.blur_rows[static_cast<std::size_t>(yy) * fw + x];
+        }
+        m.field[static_cast<std::size_t>(y + fv0) * W + (x + fu0)] = acc;
+      }
+  }
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = m.p.camera.z_min, z_max = m.p.camera.z_max;
   const double unit = K.depth_scale;
@@ -847,7 +908,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
         }
       }
       if (noise.axial.enabled)
-        z += noise.axial.sigma(z0, out.incidence[pix]) * normal(key, kAxial);
+        z += noise.axial.sigma(z0, out.incidence[pix]) *
+             (correlated ? static_cast<double>(m.field[pix]) : normal(key, kAxial));
       if (z < z_min || z > z_max) continue;
       const long q = static_cast<long>(z / unit + 0.5);  // z > 0 here
       if (q <= 0 || q > 65535) continue;

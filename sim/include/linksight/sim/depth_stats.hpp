@@ -64,7 +64,8 @@ struct DepthStats {
     double z = 0, angle = 0, sigma = 0;
   };
   std::vector<Window> samples;
-  /// Residual correlation at lags 1..4 px (horizontal and vertical pooled).
+  /// Residual correlation at lags 1..4 px (horizontal and vertical pooled), over windows
+  /// under depth_bin_max_angle, on the residuals of a quadratic surface.
   std::array<double, 4> correlation{};
   /// near_left: the near surface left of the gap (its right edge); near_right: the other.
   EdgeSide near_left, near_right;
@@ -99,6 +100,17 @@ struct DepthStats {
 
 namespace linksight::sim {
 
+/// What the window estimator of depth_stats reads from unit-variance noise whose
+/// correlation is Gaussian with width `correlation_px` (AxialNoise::correlation_px), over
+/// full windows: the pooled residual correlation at lags 1..4 and the plane-fit variance
+/// as a fraction of the true one. The fits remove low frequencies, so both read lower
+/// than the noise itself; fit_noise inverts this.
+struct WindowResponse {
+  std::array<double, 4> correlation{};
+  double variance_factor = 1;
+};
+[[nodiscard]] WindowResponse window_response(double correlation_px, int window = 15);
+
 /// The noise model's parameters fitted to measured statistics, and what could not be.
 struct NoiseFit {
   NoiseParams params;              ///< `start` with every term the data determine replaced
@@ -106,12 +118,15 @@ struct NoiseFit {
 };
 
 /// Fits the model to `stats`:
+/// - the correlation width whose window_response matches the measured lag-1 and lag-2
+///   correlation, and with it the plane-fit sigma corrected to the noise's own;
 /// - axial a, c (sigma = a + c z^2) by least squares over the depth bins (windows under
 ///   depth_bin_max_angle), then k_theta over the angle bins on what a + c z^2 leaves;
 /// - the projector baseline, signed, when the shadows decide a side;
 /// - holes per frame and their size.
 /// Terms the model has no parameter for yet (the residual correlation, the flying
 /// pixels' position) are reported in notes, as is anything left at `start`.
-[[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start);
+[[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start,
+                                 int window = 15);
 
 }  // namespace linksight::sim

@@ -21,6 +21,10 @@ struct AxialNoise {
   double k_theta = 0.0001;
   /// The angle term is evaluated at min(theta, theta_cap) so it stays finite [rad].
   double theta_cap = 80.0 * std::numbers::pi / 180.0;
+  /// Spatial correlation: the unit normal field is a white field blurred by a Gaussian of
+  /// this standard deviation [px] and rescaled to unit variance, so neighbours at lag L
+  /// correlate by exp(-L^2 / (4 s^2)). 0: white (every pixel its own draw).
+  double correlation_px = 0.0;
   /// sigma_z [m] at depth z [m] and incidence theta [rad].
   [[nodiscard]] double sigma(double z, double theta) const;
 };
