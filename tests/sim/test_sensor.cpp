@@ -240,9 +240,14 @@ TEST(Sensor, OccludedFractionOfABoxOverTheMiddleThreeBalls) {
   EXPECT_TRUE(occluder_labels);
 }
 
-TEST(Sensor, SameImagesForAnyThreadCount) {
+class SensorThreads : public ::testing::TestWithParam<double> {};
+
+// White and correlated axial noise (the blurred field is built in parallel too).
+TEST_P(SensorThreads, SameImagesForAnyThreadCount) {
   const ComponentGeometry g;
-  SensorParams p = side_view(NoiseParams::sr300());
+  NoiseParams noise = NoiseParams::sr300();
+  noise.axial.correlation_px = GetParam();
+  SensorParams p = side_view(noise);
   BackgroundObject table;
   table.shape.half_extents = Eigen::Vector3d(1.0, 1.0, 0.01);
   table.X_WO.translation() = Eigen::Vector3d(0.25, 0.3, 0.3);
@@ -261,6 +266,47 @@ TEST(Sensor, SameImagesForAnyThreadCount) {
   // A different frame or seed draws different noise.
   EXPECT_NE(one.render(X, 0.0, 42, 0).depth.data, one.render(X, 0.0, 42, 1).depth.data);
   EXPECT_NE(one.render(X, 0.0, 42, 0).depth.data, one.render(X, 0.0, 43, 0).depth.data);
+}
+INSTANTIATE_TEST_SUITE_P(Sensor, SensorThreads, ::testing::Values(0.0, 1.5),
+                         [](const ::testing::TestParamInfo<double>& i) {
+                           return i.param > 0 ? std::string("Correlated") : std::string("White");
+                         });
+
+// Correlated noise keeps its sigma (unit variance after the blur) and correlates
+// neighbours as exp(-L^2 / 4 s^2): on a fronto-parallel plate, without other noise.
+TEST(Sensor, CorrelatedNoiseHasItsSigmaAndCorrelation) {
+  NoiseParams noise = NoiseParams::off();
+  noise.axial.enabled = true;
+  noise.axial.a = 0.002;
+  noise.axial.c = 0.0;
+  noise.axial.k_theta = 0.0;
+  noise.axial.correlation_px = 1.5;
+  SensorParams p = side_view(noise);
+  BackgroundObject plate;
+  plate.shape.half_extents = Eigen::Vector3d(2.0, 0.01, 2.0);
+  plate.X_WO.translation() = Eigen::Vector3d(0.25, 0.3, 0.5);  // 0.9 m from the camera
+  Sensor sensor(p, ComponentGeometry{}, {}, {plate});
+  std::vector<Eigen::Isometry3d> away(11, Eigen::Isometry3d(Eigen::Translation3d(0, 0, -10)));
+  double s2 = 0, c1 = 0, c2 = 0;
+  long n = 0;
+  for (std::uint64_t frame = 0; frame < 3; ++frame) {
+    const DepthFrame f = sensor.render(away, 0.0, 7, frame);
+    const int W = f.width;
+    for (int v = 100; v < 380; ++v)
+      for (int u = 100; u < 540; ++u) {
+        const auto at = [&](int uu) {
+          const std::size_t i = static_cast<std::size_t>(v) * W + uu;
+          return static_cast<double>(f.depth_m[i]) - f.depth_clean_m[i];
+        };
+        s2 += at(u) * at(u);
+        c1 += at(u) * at(u + 1);
+        c2 += at(u) * at(u + 2);
+        ++n;
+      }
+  }
+  EXPECT_NEAR(std::sqrt(s2 / n), 0.002, kSigmaRelTol * 0.002);
+  EXPECT_NEAR(c1 / s2, std::exp(-1.0 / (4 * 1.5 * 1.5)), 0.03);
+  EXPECT_NEAR(c2 / s2, std::exp(-4.0 / (4 * 1.5 * 1.5)), 0.03);
 }
 
 // Culling skips pixels whose rays provably miss: the images must not change. A small
