@@ -21,5 +21,6 @@ Runner add_render(CLI::App& app);
 Runner add_run(CLI::App& app);
 Runner add_sweep(CLI::App& app);
 Runner add_calibrate_noise(CLI::App& app);
+Runner add_fidelity(CLI::App& app);
 
 }  // namespace linksight::cli

@@ -39,6 +39,10 @@ int main(int argc, char** argv) {
        "Measure a depth camera's noise and artefacts on a real recording (16-bit depth PNGs) "
        "and fit the simulated SR300's noise model: a report and a noise: block for scenes.",
        add_calibrate_noise},
+      {"fidelity",
+       "Compare a real recording with a simulated one: the calibrate-noise statistics side "
+       "by side with their ratios, and overlaid figures.",
+       add_fidelity},
       {"devices", "List every OpenCL platform and device, and what the opencl back end needs.",
        add_devices},
       {"meshes", "Write the component's triangle mesh (component.obj, metres, frame K).",

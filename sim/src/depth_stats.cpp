@@ -262,6 +262,8 @@ EdgeSide side_of(const std::vector<Edge>& edges, bool near_left, double f) {
     x.push_back(f * (1.0 / e.z_near - 1.0 / e.z_far));
     y.push_back(e.span);
   }
+  s.gap_px = x;
+  s.width_px = y;
   if (s.edges == 0) return s;
   const double n = s.edges;
   s.invalid_1px = one / n;
@@ -384,12 +386,13 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   const EdgeSide& r = s.near_right;
   constexpr int kMinEdges = 20;
   constexpr double kMinSlope = 0.005;  // [m]: below 5 mm no baseline is seen
-  // Decided by how well the width follows the gap (the correlation of the fit), not by the
-  // slope alone: edge bands on the other side also widen somewhat with the gap.
+  // The other side's bands can widen with the gap too (a side face seen at grazing
+  // incidence, dropped), so the shadow side is the one with the steeper fit that also has
+  // the wider bands, provided its widths do follow the gap.
   constexpr double kMinFitR = 0.3;
   auto shadow_side = [&](const EdgeSide& a, const EdgeSide& other) {
     return a.edges >= kMinEdges && a.slope > kMinSlope && a.fit_r >= kMinFitR &&
-           a.fit_r > 2 * std::max(other.fit_r, 0.0);
+           a.slope > other.slope && a.band_median_px > other.band_median_px;
   };
   if (shadow_side(l, r)) {
     s.projector_side = -1;

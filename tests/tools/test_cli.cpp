@@ -557,6 +557,58 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
   expect_refused("calibrate-noise --input " + (dir / "in").string() + k, "must be 16-bit");
 }
 
+// fidelity: the real frames against a rendered recording; every statistic a row with its
+// ratio, the overlaid figures; bad input named, an existing output kept unless --force.
+TEST_F(Cli, FidelityComparesRealAndSimulatedRecordings) {
+  const fs::path real = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
+  fs::create_directories(dir);
+  std::ofstream(dir / "scene.yaml") << R"(duration_s: 1.0
+camera:
+  look_at: {eye_m: [0.0, -0.7, 0.5], target_m: [0.0, 0.0, 0.5], up: [0, 0, 1]}
+base: {waypoints: [{t_s: 0, position_m: [0.0, 0.0, 0.5]}]}
+background:
+  wall: {position_m: [0.0, 0.2, 0.5], half_extents_m: [1.5, 0.01, 1.0]}
+  objects:
+    - {shape: box, half_extents_m: [0.05, 0.05, 0.12], position_m: [-0.2, -0.15, 0.45]}
+)";
+  CliRun r = run("render --scene " + (dir / "scene.yaml").string() + " --frames 4 --out " +
+                     (dir / "sim").string(),
+                 dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("fidelity --real " + real.string() + " --sim " + (dir / "sim").string() + " --out " +
+              out.string(),
+          dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("baseline_mm"), std::string::npos) << r.out;
+  std::ifstream in(out / "fidelity.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  bool side = false, flying = false;
+  for (const auto& row : j["rows"]) {
+    if (row["statistic"] == "projector side (-1 left, +1 right)") {
+      side = true;
+      EXPECT_EQ(row["real"], -1.0);  // the SR305's projector is image-left
+      EXPECT_EQ(row["sim"], 1.0);    // the scene's, +50 mm: image-right
+    }
+    flying = flying || row["statistic"] == "flying rate";
+  }
+  EXPECT_TRUE(side);
+  EXPECT_TRUE(flying);
+  for (const char* fig : {"sigma_depth.png", "sigma_angle.png", "shadow_band.png", "holes.png"})
+    EXPECT_GT(fs::exists(out / "figures" / fig) ? fs::file_size(out / "figures" / fig) : 0u,
+              1000u)
+        << fig;
+  // An existing output is kept unless --force; a missing recording is named.
+  r = run("fidelity --real " + real.string() + " --sim " + (dir / "sim").string() +
+              " --no-figures --out " + out.string(),
+          dir);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_TRUE(fs::exists(out / "fidelity.json"));
+  fs::remove_all(out);
+  expect_refused("fidelity --real " + (dir / "nowhere").string() + " --sim " +
+                     (dir / "sim").string() + " --no-figures",
+                 "nowhere");
+}
+
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
   const std::string input = std::string(LINKSIGHT_TEST_DATA_DIR) + "/sr305/100.png";
   const CliRun r = run(

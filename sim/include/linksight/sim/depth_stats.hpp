@@ -51,6 +51,9 @@ struct EdgeSide {
   /// projector baseline [m] when this is the shadow side.
   double slope = 0, intercept = 0;
   double fit_r = 0;        ///< correlation of the fit
+  /// Every edge: f (1/z_near - 1/z_far) [px] and the band width between the stable sides
+  /// [px], for figures.
+  std::vector<double> gap_px, width_px;
 };
 
 struct DepthStats {

@@ -1,0 +1,170 @@
+// linksight fidelity: the statistics calibrate-noise measures, on a real recording and on
+// a simulated one (`linksight render`), side by side with their ratios, and figures that
+// overlay them. How far a simulation is from its camera, in the camera's own numbers.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "cli_common.hpp"
+#include "commands.hpp"
+#include "format.hpp"
+#include "linksight/io/atomic_file.hpp"
+#include "linksight/io/error.hpp"
+#include "linksight/io/frames.hpp"
+#include "linksight/sim/depth_stats.hpp"
+
+namespace linksight::cli {
+namespace fs = std::filesystem;
+namespace {
+
+struct FidelityOptions {
+  std::string real, sim, out;
+  std::string real_intrinsics, sim_intrinsics;
+  bool no_figures = false, quiet = false, force = false;
+};
+
+// A recording: DIR/depth (as `linksight render` writes), DIR/frames, or DIR itself; the
+// intrinsics beside the frames' folder unless given.
+sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, const char* role) {
+  fs::path frames = dir, k = intrinsics;
+  std::error_code ec;
+  for (const char* sub : {"depth", "frames"})
+    if (fs::is_directory(fs::path(dir) / sub, ec)) frames = fs::path(dir) / sub;
+  if (k.empty()) k = fs::path(dir) / "intrinsics.json";
+  const io::Intrinsics K = io::read_intrinsics(k);
+  std::vector<io::DepthImage> images;
+  for (const fs::path& p : io::list_frames(frames.string())) {
+    if (!io::is_depth_png(p))
+      throw io::InputError(p.string() + ": fidelity reads 16-bit depth PNGs only");
+    images.push_back(io::read_depth_png(p));
+    if (images.back().width != K.width || images.back().height != K.height)
+      throw io::InputError(p.string() + ": does not match the intrinsics (" + k.string() + ")");
+  }
+  try {
+    return sim::depth_stats(images, K);
+  } catch (const std::invalid_argument& e) {
+    throw io::InputError(std::string("--") + role + " " + dir + ": " + e.what());
+  }
+}
+
+struct Row {
+  std::string name;
+  double real, sim;
+};
+
+std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
+  std::vector<Row> out;
+  auto bins = [&](const std::vector<sim::SigmaBin>& a, const std::vector<sim::SigmaBin>& b,
+                  const std::string& what, double unit, int digits) {
+    for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) {
+      if (a[i].windows < 5 || b[i].windows < 5) continue;
+      std::ostringstream n;
+      n << std::fixed << std::setprecision(digits) << "sigma_mm " << what << " " << a[i].lo * unit
+        << "-" << a[i].hi * unit;
+      out.push_back({n.str(), a[i].sigma * 1e3, b[i].sigma * 1e3});
+    }
+  };
+  bins(r.sigma_by_depth, s.sigma_by_depth, "z_m", 1.0, 2);
+  bins(r.sigma_by_angle, s.sigma_by_angle, "deg", 180.0 / 3.14159265358979323846, 0);
+  out.push_back({"correlation lag 1 px", r.correlation[0], s.correlation[0]});
+  out.push_back({"correlation lag 2 px", r.correlation[1], s.correlation[1]});
+  auto side = [&](const sim::EdgeSide& a, const sim::EdgeSide& b, const std::string& which) {
+    out.push_back({which + " invalid at 1 px", a.invalid_1px, b.invalid_1px});
+    out.push_back({which + " invalid at 2 px", a.invalid_2px, b.invalid_2px});
+    out.push_back({which + " direct jumps per edge", a.edges ? double(a.direct) / a.edges : 0,
+                   b.edges ? double(b.direct) / b.edges : 0});
+    out.push_back({which + " band median px", a.band_median_px, b.band_median_px});
+  };
+  // Compared as shadow side and other side: a simulation with its projector on the other
+  // side is compared like for like, and the side itself is a row.
+  const bool r_left = r.projector_side < 0, s_left = s.projector_side < 0;
+  side(r_left ? r.near_left : r.near_right, s_left ? s.near_left : s.near_right, "shadow side");
+  side(r_left ? r.near_right : r.near_left, s_left ? s.near_right : s.near_left, "other side");
+  out.push_back({"projector side (-1 left, +1 right)", double(r.projector_side), double(s.projector_side)});
+  out.push_back({"baseline_mm", r.baseline * 1e3, s.baseline * 1e3});
+  out.push_back({"flying rate", r.flying_rate, s.flying_rate});
+  out.push_back({"flying position", r.flying_position, s.flying_position});
+  out.push_back({"holes per frame", r.holes_per_frame, s.holes_per_frame});
+  auto pct = [](std::vector<int> v, double q) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    return double(v[static_cast<std::size_t>(q * double(v.size() - 1))]);
+  };
+  out.push_back({"hole size median px", pct(r.hole_sizes, 0.5), pct(s.hole_sizes, 0.5)});
+  out.push_back({"hole size p90 px", pct(r.hole_sizes, 0.9), pct(s.hole_sizes, 0.9)});
+  out.push_back({"depth step mm", r.depth_step * 1e3, s.depth_step * 1e3});
+  return out;
+}
+
+nlohmann::json series(const sim::DepthStats& s) {
+  auto bins = [](const std::vector<sim::SigmaBin>& v, double unit) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const auto& b : v)
+      if (b.windows > 0)
+        a.push_back({{"centre", b.centre * unit}, {"sigma_mm", b.sigma * 1e3}, {"windows", b.windows}});
+    return a;
+  };
+  const sim::EdgeSide& shadow = s.projector_side < 0 ? s.near_left : s.near_right;
+  return {{"sigma_by_depth", bins(s.sigma_by_depth, 1.0)},
+          {"sigma_by_angle", bins(s.sigma_by_angle, 180.0 / 3.14159265358979323846)},
+          {"shadow_gap_px", shadow.gap_px},
+          {"shadow_width_px", shadow.width_px},
+          {"hole_sizes_px", s.hole_sizes}};
+}
+
+int run_fidelity(const FidelityOptions& o) {
+  const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real");
+  const sim::DepthStats simulated = measure(o.sim, o.sim_intrinsics, "sim");
+  const std::vector<Row> table = rows(real, simulated);
+  std::ostringstream text;
+  text << std::left << std::setw(44) << "statistic" << std::right << std::setw(10) << "real"
+       << std::setw(10) << "sim" << std::setw(10) << "sim/real" << "\n";
+  nlohmann::json j_rows = nlohmann::json::array();
+  for (const Row& r : table) {
+    const double ratio = r.real != 0 ? r.sim / r.real : std::nan("");
+    text << std::left << std::setw(44) << r.name << std::right << std::fixed << std::setprecision(3)
+         << std::setw(10) << r.real << std::setw(10) << r.sim << std::setw(10) << ratio << "\n";
+    j_rows.push_back({{"statistic", r.name}, {"real", json_number(r.real)},
+                      {"sim", json_number(r.sim)}, {"ratio", json_number(ratio)}});
+  }
+  io::StagedDir out(o.out, o.force);
+  io::write_file_atomic(out.path() / "fidelity.txt", [&](std::ostream& f) { f << text.str(); });
+  const nlohmann::json j = {{"real", o.real}, {"sim", o.sim}, {"rows", j_rows},
+                            {"series", {{"real", series(real)}, {"sim", series(simulated)}}}};
+  io::write_file_atomic(out.path() / "fidelity.json", [&](std::ostream& f) { f << j.dump(1) << "\n"; });
+  out.commit();
+  if (!o.quiet) std::cout << text.str();
+  if (!o.no_figures) {
+    const std::string warn = run_plot_script(
+        script_path("LINKSIGHT_FIDELITY_PLOT_SCRIPT", LINKSIGHT_FIDELITY_PLOT_SCRIPT), o.out,
+        o.quiet);
+    if (!warn.empty()) std::cerr << "linksight fidelity: " << warn << "\n";
+  }
+  if (!o.quiet) std::cout << "wrote " << o.out << "/fidelity.txt, fidelity.json"
+                          << (o.no_figures ? "" : ", figures/") << "\n";
+  return kExitOk;
+}
+
+}  // namespace
+
+Runner add_fidelity(CLI::App& app) {
+  auto o = std::make_shared<FidelityOptions>();
+  app.add_option("--real", o->real, "real recording: depth PNGs in DIR, DIR/frames or DIR/depth")
+      ->required();
+  app.add_option("--sim", o->sim, "simulated recording (linksight render --out DIR)")->required();
+  app.add_option("--real-intrinsics", o->real_intrinsics, "default: DIR/intrinsics.json");
+  app.add_option("--sim-intrinsics", o->sim_intrinsics, "default: DIR/intrinsics.json");
+  app.add_option("--out", o->out, "output directory (fidelity.txt, fidelity.json, figures/)")
+      ->required();
+  app.add_flag("--force", o->force, "replace an existing output directory");
+  app.add_flag("--no-figures", o->no_figures, "skip the PNG figures");
+  app.add_flag("--quiet", o->quiet, "print nothing on success");
+  return [o] { return run_fidelity(*o); };
+}
+
+}  // namespace linksight::cli
