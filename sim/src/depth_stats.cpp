@@ -386,13 +386,15 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   const EdgeSide& r = s.near_right;
   constexpr int kMinEdges = 20;
   constexpr double kMinSlope = 0.005;  // [m]: below 5 mm no baseline is seen
-  // The other side's bands can widen with the gap too (a side face seen at grazing
-  // incidence, dropped), so the shadow side is the one with the steeper fit that also has
-  // the wider bands, provided its widths do follow the gap.
+  // The shadow always leaves a band there, so the shadow side is the one where valid
+  // pixels jump straight across a gap at most half as often as on the other side, provided
+  // its widths follow the gap. (Slopes and band widths do not decide it: the other side's
+  // bands can widen with the gap too, where a side face seen at grazing incidence drops.)
   constexpr double kMinFitR = 0.3;
+  auto direct = [](const EdgeSide& e) { return e.edges ? double(e.direct) / e.edges : 1.0; };
   auto shadow_side = [&](const EdgeSide& a, const EdgeSide& other) {
     return a.edges >= kMinEdges && a.slope > kMinSlope && a.fit_r >= kMinFitR &&
-           a.slope > other.slope && a.band_median_px > other.band_median_px;
+           direct(a) <= 0.5 * direct(other);
   };
   if (shadow_side(l, r)) {
     s.projector_side = -1;

@@ -62,6 +62,12 @@ void NoiseParams::validate() const {
         dropouts.hole_radius_px, "must be in [1, 100]");
   check(edges.jump > 0 && std::isfinite(edges.jump), "edges.jump", edges.jump, "must be > 0");
   check(edges.p_drop >= 0 && edges.p_drop <= 1, "edges.p_drop", edges.p_drop, "must be in [0, 1]");
+  check(edges.band_p1 >= 0 && edges.band_p1 <= 1, "edges.band_p1", edges.band_p1, "must be in [0, 1]");
+  check(edges.band_p2 >= 0 && edges.band_p2 <= 1, "edges.band_p2", edges.band_p2, "must be in [0, 1]");
+  check(edges.flying_position >= 0 && edges.flying_position <= 1, "edges.flying_position",
+        edges.flying_position, "must be in [0, 1]");
+  check(edges.flying_spread >= 0 && edges.flying_spread <= 1, "edges.flying_spread",
+        edges.flying_spread, "must be in [0, 1]");
   check(edges.p_flying >= 0 && edges.p_flying <= 1, "edges.p_flying", edges.p_flying,
         "must be in [0, 1]");
 }

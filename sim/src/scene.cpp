@@ -375,12 +375,17 @@ void read_noise(const Reader& r, const YAML::Node& n, NoiseParams& noise) {
     x.hole_radius_px = r.number(d, "noise.dropouts", "hole_radius_px", x.hole_radius_px, 1, 100);
   }
   if (const YAML::Node e = n["edges"]) {
-    r.only(e, "noise.edges", {"enabled", "jump_m", "p_drop", "p_flying"});
+    r.only(e, "noise.edges", {"enabled", "jump_m", "band_p1", "band_p2", "p_drop", "p_flying",
+                              "flying_position", "flying_spread"});
     EdgeEffects& x = noise.edges;
     x.enabled = r.boolean(e, "noise.edges", "enabled", true);
     x.jump = r.number(e, "noise.edges", "jump_m", x.jump, 1e-6, 10);
     x.p_drop = r.number(e, "noise.edges", "p_drop", x.p_drop, 0, 1);
     x.p_flying = r.number(e, "noise.edges", "p_flying", x.p_flying, 0, 1);
+    x.band_p1 = r.number(e, "noise.edges", "band_p1", x.band_p1, 0, 1);
+    x.band_p2 = r.number(e, "noise.edges", "band_p2", x.band_p2, 0, 1);
+    x.flying_position = r.number(e, "noise.edges", "flying_position", x.flying_position, 0, 1);
+    x.flying_spread = r.number(e, "noise.edges", "flying_spread", x.flying_spread, 0, 1);
   }
   noise.quantize = r.boolean(n, "noise", "quantize", noise.quantize);
   // One knob for sweeps: scales every random term (axial sigma, ray jitter) after the

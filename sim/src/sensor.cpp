@@ -883,28 +883,41 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       }
       double z = z0;
       if (noise.edges.enabled) {
-        bool edge = false;
-        double z_other = 0;  // the neighbour across the largest jump, 0: nothing there
-        double jump = 0;
+        const EdgeEffects& e = noise.edges;
+        bool near_edge = false;  // a farther neighbour (or one that sees nothing)
+        bool far_1 = false, far_2 = false;  // a nearer pixel 1 or 2 px away
+        double z_far = 0;        // the farthest neighbour across a jump, for flying pixels
+        auto clean = [&](int uu, int vv) {
+          return out.depth_clean_m[static_cast<std::size_t>(vv) * W + uu];
+        };
         const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
         for (int k = 0; k < 4; ++k) {
           const int uu = u + du[k], vv = v + dv[k];
           if (uu < 0 || uu >= W || vv < 0 || vv >= H) continue;
-          const double zn = out.depth_clean_m[static_cast<std::size_t>(vv) * W + uu];
-          if (zn <= 0) {
-            edge = true;
-          } else if (std::abs(zn - z0) > noise.edges.jump) {
-            edge = true;
-            if (std::abs(zn - z0) > jump) {
-              jump = std::abs(zn - z0);
-              z_other = zn;
-            }
+          const double zn = clean(uu, vv);
+          if (zn <= 0 || zn - z0 > e.jump) {
+            near_edge = true;
+            z_far = std::max(z_far, zn);
+          } else if (z0 - zn > e.jump) {
+            far_1 = true;
           }
+          const int u2 = u + 2 * du[k], v2 = v + 2 * dv[k];
+          if (u2 < 0 || u2 >= W || v2 < 0 || v2 >= H) continue;
+          const double z2 = clean(u2, v2);
+          if (z2 > 0 && z0 - z2 > e.jump) far_2 = true;
         }
-        if (edge) {
-          if (uniform(key, kEdge) < noise.edges.p_drop) continue;
-          if (z_other > 0 && uniform(key, kFlying) < noise.edges.p_flying)
-            z = z0 + uniform(key, kMix) * (z_other - z0);  // a flying pixel between the two
+        // The far side first: its band is the camera's, whatever the near side does.
+        if (far_1) {
+          if (uniform(key, kEdge) < e.band_p1) continue;
+        } else if (far_2) {
+          if (uniform(key, kEdge) < e.band_p2) continue;
+        } else if (near_edge) {
+          if (uniform(key, kEdge) < e.p_drop) continue;
+          if (z_far > 0 && uniform(key, kFlying) < e.p_flying) {
+            const double lo = std::max(0.0, e.flying_position - e.flying_spread);
+            const double hi = std::min(1.0, e.flying_position + e.flying_spread);
+            z = z0 + (lo + uniform(key, kMix) * (hi - lo)) * (z_far - z0);  // between the two
+          }
         }
       }
       if (noise.axial.enabled)

@@ -240,6 +240,74 @@ TEST(Sensor, OccludedFractionOfABoxOverTheMiddleThreeBalls) {
   EXPECT_TRUE(occluder_labels);
 }
 
+// The edge model on a plate at 0.5 m before a wall at 0.8 m (no other noise term, so
+// every change is the edge model's): far-side pixels 1 and 2 px from the near surface
+// are dropped at band_p1 and band_p2, near-side edge pixels at p_drop, and kept ones fly
+// with p_flying to a position within flying_position +- flying_spread. Several hundred
+// pixels per class: probabilities within 0.07 (3.5 binomial sigma at 200 pixels).
+TEST(Sensor, EdgeModelBandsAndFlyingPixels) {
+  const double z1 = 0.5, z2 = 0.8;
+  NoiseParams noise = NoiseParams::off();
+  noise.edges.enabled = true;
+  noise.edges.band_p1 = 0.7;
+  noise.edges.band_p2 = 0.4;
+  noise.edges.p_drop = 0.3;
+  noise.edges.p_flying = 0.5;
+  noise.edges.flying_position = 0.4;
+  noise.edges.flying_spread = 0.1;
+  BackgroundObject plate;
+  plate.shape.half_extents = Eigen::Vector3d(0.1, 0.1, 0.002);
+  plate.X_WO.translation() = Eigen::Vector3d(0.0, 0.0, z1 + 0.002);
+  Sensor sensor(frontal(noise), one_component(), {}, {plate, wall_at(z2)});
+  std::vector<Eigen::Isometry3d> away(1, Eigen::Isometry3d::Identity());
+  away[0].translation() = Eigen::Vector3d(0, 0, -5);
+  long far1 = 0, far1_drop = 0, far2 = 0, far2_drop = 0, near = 0, near_drop = 0;
+  long kept = 0, flying = 0;
+  for (std::uint64_t frame = 0; frame < 4; ++frame) {
+    const DepthFrame f = sensor.render(away, 0.0, 3, frame);
+    const int W = f.width, H = f.height;
+    auto clean = [&](int u, int v) { return f.depth_clean_m[static_cast<std::size_t>(v) * W + u]; };
+    for (int v = 2; v < H - 2; ++v)
+      for (int u = 2; u < W - 2; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v) * W + u;
+        const bool dropped = f.depth.data[i] == 0;
+        const double z0 = clean(u, v);
+        bool n1 = false, n2 = false, is_near = false;
+        const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
+        for (int k = 0; k < 4; ++k) {
+          n1 = n1 || z0 - clean(u + du[k], v + dv[k]) > 0.02;
+          n2 = n2 || z0 - clean(u + 2 * du[k], v + 2 * dv[k]) > 0.02;
+          is_near = is_near || clean(u + du[k], v + dv[k]) - z0 > 0.02;
+        }
+        if (n1) {
+          ++far1, far1_drop += dropped;
+        } else if (n2) {
+          ++far2, far2_drop += dropped;
+        } else if (is_near) {
+          ++near, near_drop += dropped;
+          if (!dropped) {
+            ++kept;
+            const double pos = (f.depth_m[i] - z1) / (z2 - z1);
+            if (pos > 0.05) {
+              ++flying;
+              EXPECT_GE(pos, 0.3 - 0.01);
+              EXPECT_LE(pos, 0.5 + 0.01);
+            }
+          }
+        } else if (z0 > 0) {
+          EXPECT_FALSE(dropped) << "away from edges nothing is dropped";
+        }
+      }
+  }
+  ASSERT_GT(far1, 200);
+  ASSERT_GT(far2, 200);
+  ASSERT_GT(kept, 200);
+  EXPECT_NEAR(double(far1_drop) / far1, 0.7, 0.07);
+  EXPECT_NEAR(double(far2_drop) / far2, 0.4, 0.07);
+  EXPECT_NEAR(double(near_drop) / near, 0.3, 0.07);
+  EXPECT_NEAR(double(flying) / kept, 0.5, 0.07);
+}
+
 class SensorThreads : public ::testing::TestWithParam<double> {};
 
 // White and correlated axial noise (the blurred field is built in parallel too).

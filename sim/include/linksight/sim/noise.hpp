@@ -56,15 +56,22 @@ struct Dropouts {
   double hole_radius_px = 3.0;  ///< [px]
 };
 
-/// Depth discontinuities: a pixel whose 4-neighbour differs by more than `jump` in
-/// noise-free depth (or sees nothing) is an edge pixel. It is dropped with probability
-/// p_drop, else replaced with probability p_flying by a mix z_near + u (z_far - z_near),
-/// u ~ U(0, 1) (a "flying pixel").
+/// Depth discontinuities, where two 4-neighbours' noise-free depths differ by more than
+/// `jump`. On the far side, the invalid band a coded-light camera leaves: the pixel next
+/// to the near surface is dropped with probability band_p1, the one after it (2 px from
+/// the near surface, along a row or column) with band_p2. On the near side (and next to a
+/// pixel that sees nothing) the edge pixel is dropped with p_drop, else it becomes a
+/// flying pixel with p_flying: z_near + u (z_far - z_near), u uniform in
+/// [flying_position - flying_spread, flying_position + flying_spread] within [0, 1].
 struct EdgeEffects {
   bool enabled = true;
-  double jump = 0.02;     ///< [m]
-  double p_drop = 0.5;    ///< (estimate)
-  double p_flying = 0.2;  ///< (estimate)
+  double jump = 0.02;              ///< [m]
+  double band_p1 = 0.5;            ///< (estimate)
+  double band_p2 = 0.0;            ///< (estimate)
+  double p_drop = 0.5;             ///< (estimate)
+  double p_flying = 0.2;           ///< (estimate)
+  double flying_position = 0.5;    ///< mean of u
+  double flying_spread = 0.5;      ///< half-width of u's range
 };
 
 struct NoiseParams {
