@@ -1,6 +1,7 @@
 #include "linksight/sim/episode.hpp"
 
 #include <chrono>
+#include <future>
 #include <stdexcept>
 #include <string>
 
@@ -43,6 +44,10 @@ struct Episode::Impl {
   Cloud cloud;
   EpisodeFrame out;
   EpisodeTimes times;
+  // The next frame's physics, stepping on its own thread while this frame is rendered
+  // and tracked: it reads and writes the world only, and the frame holds a copy of the
+  // truth, so the result is the same as stepping in turn.
+  std::future<void> physics_ahead;
 };
 
 Episode::Episode(const Scene& scene, const EpisodeOptions& options)
@@ -63,7 +68,15 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
   m.X_CW = scene.camera.X_WC.inverse();
 }
 
-Episode::~Episode() = default;
+Episode::~Episode() {
+  // Let a step in flight finish before the world goes; its exception has no one to go to.
+  if (impl_ && impl_->physics_ahead.valid()) {
+    try {
+      impl_->physics_ahead.get();
+    } catch (...) {  // NOLINT(bugprone-empty-catch): the episode is being destroyed
+    }
+  }
+}
 
 int Episode::frames() const { return impl_->frames; }
 int Episode::done() const { return impl_->done; }
@@ -76,10 +89,19 @@ const EpisodeFrame& Episode::step() {
   const int f = m.done;
   const auto frame = static_cast<std::uint64_t>(f);
   auto t0 = std::chrono::steady_clock::now();
-  m.world->step_until(f / m.scene.camera.fps);
+  if (m.physics_ahead.valid()) {
+    m.physics_ahead.get();  // rethrows what the world threw
+  } else {
+    m.world->step_until(f / m.scene.camera.fps);
+  }
   EpisodeFrame& o = m.out;
   o.frame = f;
   o.truth = m.world->truth();
+  if (f + 1 < m.frames) {
+    World* world = m.world.get();
+    const double t_next = (f + 1) / m.scene.camera.fps;
+    m.physics_ahead = std::async(std::launch::async, [world, t_next] { world->step_until(t_next); });
+  }
   o.t = o.truth.t;
   std::swap(m.previous_C, o.truth_C);  // last frame's truth; both buffers are reused
   o.truth_C.resize(o.truth.nodes_W.size());

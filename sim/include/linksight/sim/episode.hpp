@@ -23,7 +23,9 @@ struct EpisodeOptions {
   void validate() const;  ///< throws std::invalid_argument naming the field
 };
 
-/// Wall time of each stage of the last frame [s].
+/// Wall time of each stage of the last frame [s]. The physics of frame f + 1 runs on its
+/// own thread while frame f is rendered and tracked, so `physics` is only the time step()
+/// waited for it (the first frame's: all of it).
 struct EpisodeTimes {
   double physics = 0, render = 0, extract = 0, score = 0;
 };
