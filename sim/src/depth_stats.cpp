@@ -490,12 +490,14 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, int window) {
   // The plane fit reads sigma * sqrt(variance_factor): undo it.
   const double unbias = 1.0 / std::sqrt(variance_factor);
   // Eq. of AxialNoise: sigma = a + c z^2 (+ the angle term, kept out by the depth bins'
-  // angle limit). Weighted by the windows in each bin.
+  // angle limit). Least squares in relative error, every bin with 10 windows or more alike
+  // (weights 1 / sigma^2): the model should hold at every depth the recording covers, not
+  // only where most windows happen to be.
   double s1 = 0, sz = 0, szz = 0, sy = 0, szy = 0;
   int bins = 0;
   for (const SigmaBin& b : s.sigma_by_depth) {
-    if (b.windows < 5) continue;
-    const double w = b.windows, x = b.centre * b.centre, y = b.sigma * unbias;
+    if (b.windows < 10 || !(b.sigma > 0)) continue;
+    const double y = b.sigma * unbias, w = 1.0 / (y * y), x = b.centre * b.centre;
     s1 += w, sz += w * x, szz += w * x * x, sy += w * y, szy += w * x * y;
     ++bins;
   }
@@ -512,7 +514,7 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, int window) {
     fit.notes.push_back("axial.c_per_m kept (" + std::to_string(ax.c) +
                         "): windows at one depth only");
   } else {
-    fit.notes.push_back("axial a_m, c_per_m kept: no depth bin with 5 flat windows");
+    fit.notes.push_back("axial a_m, c_per_m kept: no depth bin with 10 flat windows");
   }
   // The angle term: k_theta / sqrt(z) * theta^2 / (pi/2 - theta)^2 on what a + c z^2 leaves.
   double sgg = 0, sge = 0;
