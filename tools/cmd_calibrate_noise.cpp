@@ -41,7 +41,11 @@ std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int 
     << "}\n"
     << "  shadow: {baseline_m: " << n.shadow.baseline << "}\n"
     << "  dropouts: {hole_rate: " << n.dropouts.hole_rate
-    << ", hole_radius_px: " << n.dropouts.hole_radius_px << "}\n";
+    << ", hole_radius_px: " << n.dropouts.hole_radius_px << "}\n"
+    << "  edges: {band_p1: " << n.edges.band_p1 << ", band_p2: " << n.edges.band_p2
+    << ", p_drop: " << n.edges.p_drop << ", p_flying: " << n.edges.p_flying
+    << ", flying_position: " << n.edges.flying_position
+    << ", flying_spread: " << n.edges.flying_spread << "}\n";
   return y.str();
 }
 

@@ -31,24 +31,36 @@ struct FidelityOptions {
 // A recording: DIR/depth (as `linksight render` writes), DIR/frames, or DIR itself; the
 // intrinsics beside the frames' folder unless given.
 sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, const char* role) {
-  fs::path frames = dir, k = intrinsics;
-  std::error_code ec;
-  for (const char* sub : {"depth", "frames"})
-    if (fs::is_directory(fs::path(dir) / sub, ec)) frames = fs::path(dir) / sub;
-  if (k.empty()) k = fs::path(dir) / "intrinsics.json";
-  const io::Intrinsics K = io::read_intrinsics(k);
-  std::vector<io::DepthImage> images;
-  for (const fs::path& p : io::list_frames(frames.string())) {
-    if (!io::is_depth_png(p))
-      throw io::InputError(p.string() + ": fidelity reads 16-bit depth PNGs only");
-    images.push_back(io::read_depth_png(p));
-    if (images.back().width != K.width || images.back().height != K.height)
-      throw io::InputError(p.string() + ": does not match the intrinsics (" + k.string() + ")");
-  }
   try {
-    return sim::depth_stats(images, K);
-  } catch (const std::invalid_argument& e) {
-    throw io::InputError(std::string("--") + role + " " + dir + ": " + e.what());
+    fs::path frames = dir, k = intrinsics;
+    std::error_code ec;
+    for (const char* sub : {"depth", "frames"}) {
+      if (fs::is_directory(fs::path(dir) / sub, ec)) {
+        frames = fs::path(dir) / sub;
+        break;
+      }
+    }
+    if (k.empty()) k = fs::path(dir) / "intrinsics.json";
+    const io::Intrinsics K = io::read_intrinsics(k);
+    std::vector<io::DepthImage> images;
+    for (const fs::path& p : io::list_frames(frames.string())) {
+      if (!io::is_depth_png(p))
+        throw io::InputError(p.string() + ": fidelity reads 16-bit depth PNGs only");
+      images.push_back(io::read_depth_png(p));
+      const io::DepthImage& f = images.back();
+      if (f.width != K.width || f.height != K.height)
+        throw io::InputError(p.string() + ": " + std::to_string(f.width) + "x" +
+                             std::to_string(f.height) + " does not match the intrinsics (" +
+                             k.string() + ": " + std::to_string(K.width) + "x" +
+                             std::to_string(K.height) + ")");
+    }
+    try {
+      return sim::depth_stats(images, K);
+    } catch (const std::invalid_argument& e) {
+      throw io::InputError(dir + ": " + e.what());
+    }
+  } catch (const io::InputError& e) {
+    throw io::InputError(std::string("--") + role + ": " + e.what());
   }
 }
 
@@ -81,10 +93,16 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
     out.push_back({which + " band median px", a.band_median_px, b.band_median_px});
   };
   // Compared as shadow side and other side: a simulation with its projector on the other
-  // side is compared like for like, and the side itself is a row.
-  const bool r_left = r.projector_side < 0, s_left = s.projector_side < 0;
-  side(r_left ? r.near_left : r.near_right, s_left ? s.near_left : s.near_right, "shadow side");
-  side(r_left ? r.near_right : r.near_left, s_left ? s.near_right : s.near_left, "other side");
+  // side is compared like for like, and the side itself is a row. With a side undecided
+  // in either, by image side instead.
+  if (r.projector_side != 0 && s.projector_side != 0) {
+    const bool r_left = r.projector_side < 0, s_left = s.projector_side < 0;
+    side(r_left ? r.near_left : r.near_right, s_left ? s.near_left : s.near_right, "shadow side");
+    side(r_left ? r.near_right : r.near_left, s_left ? s.near_right : s.near_left, "other side");
+  } else {
+    side(r.near_left, s.near_left, "near surface left");
+    side(r.near_right, s.near_right, "near surface right");
+  }
   out.push_back({"projector side (-1 left, +1 right)", double(r.projector_side), double(s.projector_side)});
   out.push_back({"baseline_mm", r.baseline * 1e3, s.baseline * 1e3});
   out.push_back({"flying rate", r.flying_rate, s.flying_rate});
@@ -118,6 +136,7 @@ nlohmann::json series(const sim::DepthStats& s) {
 }
 
 int run_fidelity(const FidelityOptions& o) {
+  io::StagedDir out(o.out, o.force);  // refuses an existing --out before any work
   const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real");
   const sim::DepthStats simulated = measure(o.sim, o.sim_intrinsics, "sim");
   const std::vector<Row> table = rows(real, simulated);
@@ -132,19 +151,20 @@ int run_fidelity(const FidelityOptions& o) {
     j_rows.push_back({{"statistic", r.name}, {"real", json_number(r.real)},
                       {"sim", json_number(r.sim)}, {"ratio", json_number(ratio)}});
   }
-  io::StagedDir out(o.out, o.force);
   io::write_file_atomic(out.path() / "fidelity.txt", [&](std::ostream& f) { f << text.str(); });
   const nlohmann::json j = {{"real", o.real}, {"sim", o.sim}, {"rows", j_rows},
                             {"series", {{"real", series(real)}, {"sim", series(simulated)}}}};
   io::write_file_atomic(out.path() / "fidelity.json", [&](std::ostream& f) { f << j.dump(1) << "\n"; });
+  // Figures into the staging directory, so the output appears whole; a failed plot is a
+  // warning, the tables stand.
+  std::string warn;
+  if (!o.no_figures)
+    warn = run_plot_script(
+        script_path("LINKSIGHT_FIDELITY_PLOT_SCRIPT", LINKSIGHT_FIDELITY_PLOT_SCRIPT), out.path(),
+        o.quiet);
   out.commit();
   if (!o.quiet) std::cout << text.str();
-  if (!o.no_figures) {
-    const std::string warn = run_plot_script(
-        script_path("LINKSIGHT_FIDELITY_PLOT_SCRIPT", LINKSIGHT_FIDELITY_PLOT_SCRIPT), o.out,
-        o.quiet);
-    if (!warn.empty()) std::cerr << "linksight fidelity: " << warn << "\n";
-  }
+  if (!warn.empty()) std::cerr << "linksight fidelity: " << warn << "\n";
   if (!o.quiet) std::cout << "wrote " << o.out << "/fidelity.txt, fidelity.json"
                           << (o.no_figures ? "" : ", figures/") << "\n";
   return kExitOk;

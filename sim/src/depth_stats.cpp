@@ -28,6 +28,7 @@ struct Edge {
   int invalid;  // invalid pixels between the two stable sides
   int span;     // every pixel between them (invalid or flying)
   double z_near, z_far;
+  bool first_invalid = false, second_invalid = false;  // 1 and 2 px past the near side
 };
 
 // Correlation sums at lags 1..4, pooled over windows and both directions.
@@ -164,6 +165,10 @@ class Frame {
         const double za = z(u, v), zb = z(b, v);
         if (std::abs(zb - za) > p_.edge_jump) {
           Edge e{za < zb, 0, b - u - 1, std::min(za, zb), std::max(za, zb)};
+          // Counted from the near side's last stable pixel toward the far side.
+          const int step = e.near_left ? 1 : -1, from = e.near_left ? u : b;
+          e.first_invalid = !valid(from + step, v);
+          e.second_invalid = b - u >= 3 && !valid(from + 2 * step, v);
           long here_valid = 2;  // A and B
           for (int w = u + 1; w < b; ++w) {
             if (!valid(w, v)) {
@@ -256,8 +261,8 @@ EdgeSide side_of(const std::vector<Edge>& edges, bool near_left, double f) {
     if (e.near_left != near_left) continue;
     ++s.edges;
     s.direct += e.invalid == 0;
-    one += e.invalid >= 1;
-    two += e.invalid >= 2;
+    one += e.first_invalid;
+    two += e.second_invalid;
     widths.push_back(e.invalid);
     x.push_back(f * (1.0 / e.z_near - 1.0 / e.z_far));
     y.push_back(e.span);
@@ -309,6 +314,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   if (frames.empty()) throw std::invalid_argument("depth statistics: no frames");
   DepthStats s;
   s.frames = static_cast<int>(frames.size());
+  s.window = p.window;
   CorrelationSums corr;
   std::vector<Edge> edges;
   long flying = 0;
@@ -394,7 +400,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   auto direct = [](const EdgeSide& e) { return e.edges ? double(e.direct) / e.edges : 1.0; };
   auto shadow_side = [&](const EdgeSide& a, const EdgeSide& other) {
     return a.edges >= kMinEdges && a.slope > kMinSlope && a.fit_r >= kMinFitR &&
-           direct(a) <= 0.5 * direct(other);
+           direct(a) < 0.5 * direct(other);  // strict: no direct jumps either side decides nothing
   };
   if (shadow_side(l, r)) {
     s.projector_side = -1;
@@ -414,6 +420,9 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
 namespace linksight::sim {
 
 WindowResponse window_response(double correlation_px, int window) {
+  if (window < 5)
+    throw std::invalid_argument("window_response: window = " + std::to_string(window) +
+                                ": must be >= 5 px");
   const int n = window, N = n * n;
   // Cov of the noise: exp(-d^2 / (4 s^2)), the correlation of a Gaussian-blurred white field.
   Eigen::MatrixXd C = Eigen::MatrixXd::Identity(N, N);
@@ -457,7 +466,8 @@ WindowResponse window_response(double correlation_px, int window) {
   return r;
 }
 
-NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, int window) {
+NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
+  const int window = s.window;
   NoiseFit fit;
   fit.params = start;
   AxialNoise& ax = fit.params.axial;
@@ -467,9 +477,14 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, int window) {
   double variance_factor = window_response(0, window).variance_factor;
   const double rho1 = s.correlation[0];
   if (rho1 > window_response(0.3, window).correlation[0]) {
-    double lo = 0.3, hi = 6.0;
+    // Above about 4 px the reading saturates (near 0.9): a width there is not determined.
+    double lo = 0.3, hi = 4.0;
     if (rho1 >= window_response(hi, window).correlation[0]) {
       lo = hi;
+      fit.notes.emplace_back(
+          "correlation width at the search limit (4 px): the lag-1 correlation is as high "
+          "as a Gaussian kernel can explain in these windows, or higher (curvier "
+          "surfaces?); sigma is not corrected for it");
     } else {
       for (int it = 0; it < 24; ++it) {  // to 4e-7 px
         const double mid = 0.5 * (lo + hi);
@@ -478,8 +493,8 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, int window) {
     }
     ax.correlation_px = 0.5 * (lo + hi);
     const WindowResponse wr = window_response(ax.correlation_px, window);
-    variance_factor = wr.variance_factor;
-    char line[200];
+    if (lo < hi) variance_factor = wr.variance_factor;
+    char line[256];
     std::snprintf(line, sizeof line,
                   "correlation width %.2f px from the lag-1 correlation %.2f; the model then "
                   "reads %.2f / %.2f at lags 2 / 3 (measured %.2f / %.2f)",
@@ -551,12 +566,35 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, int window) {
     const double p90 = sizes[static_cast<std::size_t>(0.9 * static_cast<double>(sizes.size() - 1))];
     fit.params.dropouts.hole_radius_px = std::max(1.0, std::sqrt(p90 / std::numbers::pi));
   }
-  char line[160];
+  char line[256];
+  // The edge band, on the side away from the shadow (the shadow's own band is geometry).
+  // Its first pixel past the near surface is invalid if the near edge pixel was dropped
+  // (p_drop) or else the far one (band_p1); its second if, respectively, the far one was
+  // (band_p1) or the one after (band_p2).
+  const EdgeSide& other = s.projector_side < 0 ? s.near_right : s.near_left;
+  EdgeEffects& e = fit.params.edges;
+  if (s.projector_side != 0 && other.edges >= 20 && e.p_drop < 1) {
+    const double q = e.p_drop;
+    e.band_p1 = std::clamp((other.invalid_1px - q) / (1 - q), 0.0, 1.0);
+    e.band_p2 = std::clamp((other.invalid_2px - q * e.band_p1) / (1 - q), 0.0, 1.0);
+    std::snprintf(line, sizeof line,
+                  "edges.band_p1/band_p2 from the non-shadow side's %.2f / %.2f invalid at "
+                  "1 / 2 px, given edges.p_drop %.2f (kept: not separable from them)",
+                  other.invalid_1px, other.invalid_2px, q);
+    fit.notes.emplace_back(line);
+  } else {
+    fit.notes.emplace_back("edges.band_p1, band_p2, p_drop kept: no side decided, or under 20 "
+                           "edges on the side away from the shadow");
+  }
+  if (s.flying_rate > 0) e.flying_position = s.flying_position;
   std::snprintf(line, sizeof line,
-                "flying pixels %.1f%% of band neighbours at %.2f of the gap: edges.p_flying "
-                "kept, the model draws positions uniformly",
+                "flying pixels %.1f%% of band neighbours at %.2f of the gap: flying_position "
+                "fitted, edges.p_flying and flying_spread kept (the rate also counts "
+                "grazing-surface pixels, which p_flying does not make)",
                 100 * s.flying_rate, s.flying_position);
   fit.notes.emplace_back(line);
+  fit.notes.emplace_back("lateral.sigma_px and dropouts.max_incidence, min_signal kept: not "
+                         "measured");
   return fit;
 }
 

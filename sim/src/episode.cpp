@@ -48,6 +48,8 @@ struct Episode::Impl {
   // and tracked: it reads and writes the world only, and the frame holds a copy of the
   // truth, so the result is the same as stepping in turn.
   std::future<void> physics_ahead;
+  // A step that threw leaves the world ahead of the frames: no further step.
+  bool failed = false;
 };
 
 Episode::Episode(const Scene& scene, const EpisodeOptions& options)
@@ -86,6 +88,17 @@ const EpisodeTimes& Episode::last_times() const { return impl_->times; }
 const EpisodeFrame& Episode::step() {
   Impl& m = *impl_;
   if (m.done >= m.frames) throw std::logic_error("episode: step() after the last frame");
+  if (m.failed) throw std::logic_error("episode: step() after a step that threw");
+  try {
+    return step_frame();
+  } catch (...) {
+    m.failed = true;
+    throw;
+  }
+}
+
+const EpisodeFrame& Episode::step_frame() {
+  Impl& m = *impl_;
   const int f = m.done;
   const auto frame = static_cast<std::uint64_t>(f);
   auto t0 = std::chrono::steady_clock::now();

@@ -901,10 +901,12 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
           } else if (z0 - zn > e.jump) {
             far_1 = true;
           }
+          // 2 px away: the jump must fall between the neighbour (on this pixel's surface)
+          // and the pixel after it, not be the sum of two steps of a steep slope.
           const int u2 = u + 2 * du[k], v2 = v + 2 * dv[k];
           if (u2 < 0 || u2 >= W || v2 < 0 || v2 >= H) continue;
           const double z2 = clean(u2, v2);
-          if (z2 > 0 && z0 - z2 > e.jump) far_2 = true;
+          if (zn > 0 && std::abs(zn - z0) <= e.jump && z2 > 0 && zn - z2 > e.jump) far_2 = true;
         }
         // The far side first: its band is the camera's, whatever the near side does.
         if (far_1) {

@@ -138,7 +138,7 @@ TEST(DepthStats, RealFramesGiveTheMeasuredFigures) {
   sigma_near(s.sigma_by_depth, 0.80, 0.0009);  // 0.9 mm at 0.85 m
   sigma_near(s.sigma_by_angle, 0.0, 0.0004);     // 0.4 mm at 0-15 deg
   sigma_near(s.sigma_by_angle, 1.0472, 0.0023);  // 2.3 mm at 60-75 deg
-  // Correlated: about 0.8 at 1 px, 0.5-0.6 at 2 px, about 0 at 3-4 px; the fit reads it
+  // Correlated: about 0.8 at 1 px, 0.5-0.6 at 2 px, about 0 at 4 px; the fit reads it
   // as a Gaussian kernel of 1-2 px.
   const double width = fit_noise(s, NoiseParams::sr300()).params.axial.correlation_px;
   EXPECT_GT(width, 1.0);
@@ -158,6 +158,32 @@ TEST(DepthStats, RealFramesGiveTheMeasuredFigures) {
   EXPECT_NEAR(s.flying_rate, 0.055, 0.025);
   EXPECT_NEAR(s.flying_position, 0.4, 0.1);
   EXPECT_NEAR(s.depth_step, 0.000125, 1e-12);
+}
+
+// The estimator's reading of correlated noise: white reads white with the plane fit's own
+// 3 dof taken into account; a wider kernel reads a higher lag-1 correlation (rising to
+// about 3 px, then flat near 0.9: the quadratic fit removes what is smoother) and a lower
+// sigma (fit_noise bisects on the lag-1 reading).
+TEST(DepthStats, WindowResponseOfCorrelatedNoise) {
+  const WindowResponse white = window_response(0.0);
+  EXPECT_NEAR(white.variance_factor, 1.0, 1e-12);
+  EXPECT_LT(std::abs(white.correlation[0]), 0.05);
+  double last = -1, last_var = 2;
+  for (double s = 0.3; s <= 6.0; s += 0.3) {
+    const WindowResponse r = window_response(s);
+    if (s < 3.0) {
+      EXPECT_GT(r.correlation[0], last + 1e-3) << s;
+    } else {
+      EXPECT_GE(r.correlation[0], last - 1e-4) << s;
+    }
+    EXPECT_LT(r.variance_factor, last_var) << s;
+    last = r.correlation[0];
+    last_var = r.variance_factor;
+  }
+  // Small width: near the noise's own exp(-1 / 4 s^2) at lag 1, less what the fit takes
+  // (0.06 at 0.8 px).
+  EXPECT_NEAR(window_response(0.8).correlation[0], std::exp(-1.0 / (4 * 0.64)), 0.1);
+  EXPECT_THROW((void)window_response(1.0, 3), std::invalid_argument);
 }
 
 TEST(DepthStats, BadInputIsNamed) {

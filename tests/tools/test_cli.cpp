@@ -520,6 +520,9 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   const sim::Scene scene = sim::load_scene(dir / "scene.yaml");
   EXPECT_NEAR(scene.noise.shadow.baseline, j["baseline_mm"].get<double>() * 1e-3, 1e-8);
   EXPECT_LT(scene.noise.shadow.baseline, 0.0);
+  // The real noise is correlated (about 1.6 px), and the flying pixels sit nearer the near side.
+  EXPECT_GT(scene.noise.axial.correlation_px, 1.0);
+  EXPECT_NEAR(scene.noise.edges.flying_position, j["flying_position"].get<double>(), 1e-8);
 }
 
 TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {

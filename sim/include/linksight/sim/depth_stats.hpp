@@ -27,7 +27,8 @@ struct DepthStatsParams {
   /// Depth bin edges [m] and incidence-angle bin edges [rad] for sigma.
   std::vector<double> depth_edges = {0.40, 0.50, 0.60, 0.70, 0.80, 0.90, 1.00};
   std::vector<double> angle_edges = {0.0, 0.2618, 0.5236, 0.7854, 1.0472, 1.3090, 1.5708};
-  /// sigma by depth uses windows under this incidence, so the angle term stays out [rad].
+  /// sigma by depth, and the residual correlation, use windows under this incidence: the
+  /// angle term stays out of the one, the lateral noise's depth effect out of the other [rad].
   double depth_bin_max_angle = 0.5236;
   void validate() const;  ///< throws std::invalid_argument naming the field
 };
@@ -44,8 +45,10 @@ struct SigmaBin {
 struct EdgeSide {
   int edges = 0;           ///< discontinuities > edge_jump with a valid, stable pixel each side
   int direct = 0;          ///< of them, valid pixel next to valid pixel across the jump
-  double invalid_1px = 0;  ///< fraction of edges whose first pixel past the near surface is invalid
-  double invalid_2px = 0;  ///< ... and whose second is
+  /// Fractions of edges whose first (second) pixel past the near surface's last stable
+  /// pixel, toward the far side, is invalid.
+  double invalid_1px = 0;
+  double invalid_2px = 0;
   double band_median_px = 0;  ///< median invalid run width [px]
   /// Least-squares fit band_px = slope * f (1/z_near - 1/z_far) + intercept: slope is the
   /// projector baseline [m] when this is the shadow side.
@@ -58,6 +61,7 @@ struct EdgeSide {
 
 struct DepthStats {
   int frames = 0;
+  int window = 15;  ///< the plane-fit window side the statistics used [px]
   long valid_px = 0;
   double depth_step = 0;  ///< quantization step of the raw values [m]
   std::vector<SigmaBin> sigma_by_depth, sigma_by_angle;
@@ -112,6 +116,7 @@ struct WindowResponse {
   std::array<double, 4> correlation{};
   double variance_factor = 1;
 };
+/// Throws std::invalid_argument unless window >= 5.
 [[nodiscard]] WindowResponse window_response(double correlation_px, int window = 15);
 
 /// The noise model's parameters fitted to measured statistics, and what could not be.
@@ -121,15 +126,16 @@ struct NoiseFit {
 };
 
 /// Fits the model to `stats`:
-/// - the correlation width whose window_response matches the measured lag-1 and lag-2
-///   correlation, and with it the plane-fit sigma corrected to the noise's own;
-/// - axial a, c (sigma = a + c z^2) by least squares over the depth bins (windows under
-///   depth_bin_max_angle), then k_theta over the angle bins on what a + c z^2 leaves;
+/// - the correlation width whose window_response (at stats.window) matches the measured
+///   lag-1 correlation, and with it the plane-fit sigma corrected to the noise's own;
+/// - axial a, c (sigma = a + c z^2) by least squares in relative error over the depth
+///   bins (windows under depth_bin_max_angle), then k_theta over the angle bins on what
+///   a + c z^2 leaves;
 /// - the projector baseline, signed, when the shadows decide a side;
+/// - the edge band on the side away from the shadow (band_p1, band_p2 given start's
+///   p_drop) and the flying pixels' position;
 /// - holes per frame and their size.
-/// Terms the model has no parameter for yet (the residual correlation, the flying
-/// pixels' position) are reported in notes, as is anything left at `start`.
-[[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start,
-                                 int window = 15);
+/// Every term kept from `start`, and every measurement the model cannot follow, gets a note.
+[[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start);
 
 }  // namespace linksight::sim

@@ -55,13 +55,15 @@ class Episode {
   [[nodiscard]] int frames() const;  ///< frames the episode will run
   [[nodiscard]] int done() const;    ///< frames run so far
   [[nodiscard]] const std::vector<TrackerMode>& modes() const;
-  /// Runs the next frame. Precondition: done() < frames().
+  /// Runs the next frame. Precondition: done() < frames(). After a step that threw (a
+  /// tracker, the sensor, the world), the episode is spent: step() throws logic_error.
   const EpisodeFrame& step();
   [[nodiscard]] const EpisodeTimes& last_times() const;
   /// Per mode, over the frames run so far.
   [[nodiscard]] std::vector<EpisodeSummary> summaries() const;
 
  private:
+  const EpisodeFrame& step_frame();
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
