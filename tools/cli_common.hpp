@@ -8,6 +8,10 @@
 #include <string>
 #include <vector>
 
+#include "linksight/io/depth_png.hpp"
+#include "linksight/io/error.hpp"
+#include "linksight/io/frames.hpp"
+#include "linksight/io/intrinsics.hpp"
 #include "linksight/tracker/tracker.hpp"
 
 namespace linksight::cli {
@@ -25,6 +29,27 @@ inline std::vector<TrackerMode> parse_compare(const std::string& list) {
     }
   }
   return modes;
+}
+
+/// The 16-bit depth PNGs of `frames` (a directory or one file), each checked against the
+/// size of `K` read from `intrinsics`; io::InputError names the file and both sizes.
+inline std::vector<io::DepthImage> read_depth_frames(const std::string& frames,
+                                                     const io::Intrinsics& K,
+                                                     const std::string& intrinsics,
+                                                     const std::string& command) {
+  std::vector<io::DepthImage> images;
+  for (const std::filesystem::path& p : io::list_frames(frames)) {
+    if (!io::is_depth_png(p))
+      throw io::InputError(p.string() + ": " + command + " reads 16-bit depth PNGs only");
+    images.push_back(io::read_depth_png(p));
+    const io::DepthImage& f = images.back();
+    if (f.width != K.width || f.height != K.height)
+      throw io::InputError(p.string() + ": " + std::to_string(f.width) + "x" +
+                           std::to_string(f.height) + " does not match the intrinsics (" +
+                           intrinsics + ": " + std::to_string(K.width) + "x" +
+                           std::to_string(K.height) + ")");
+  }
+  return images;
 }
 
 /// `env`'s value if set, else the script in the source tree.

@@ -2,6 +2,7 @@
 // recording (16-bit depth PNGs of any static or slowly moving scene) and fits the
 // simulated SR300's noise model to them. Prints a report, writes the `noise:` block a
 // scene file accepts as it is, and (with --report) the statistics as JSON.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -10,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
 #include "format.hpp"
 #include "linksight/io/atomic_file.hpp"
@@ -134,18 +136,8 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
 
 int run_calibrate(const CalibrateOptions& o) {
   const io::Intrinsics K = io::read_intrinsics(o.intrinsics);
-  std::vector<io::DepthImage> frames;
-  for (const fs::path& p : io::list_frames(o.input)) {
-    if (!io::is_depth_png(p))
-      throw io::InputError(p.string() + ": calibrate-noise reads 16-bit depth PNGs only");
-    frames.push_back(io::read_depth_png(p));
-    const io::DepthImage& f = frames.back();
-    if (f.width != K.width || f.height != K.height)
-      throw io::InputError(p.string() + ": " + std::to_string(f.width) + "x" +
-                           std::to_string(f.height) + " does not match the intrinsics (" +
-                           o.intrinsics + ": " + std::to_string(K.width) + "x" +
-                           std::to_string(K.height) + ")");
-  }
+  const std::vector<io::DepthImage> frames =
+      read_depth_frames(o.input, K, o.intrinsics, "calibrate-noise");
   sim::DepthStats stats;
   try {
     stats = sim::depth_stats(frames, K);

@@ -42,18 +42,8 @@ sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, c
     }
     if (k.empty()) k = fs::path(dir) / "intrinsics.json";
     const io::Intrinsics K = io::read_intrinsics(k);
-    std::vector<io::DepthImage> images;
-    for (const fs::path& p : io::list_frames(frames.string())) {
-      if (!io::is_depth_png(p))
-        throw io::InputError(p.string() + ": fidelity reads 16-bit depth PNGs only");
-      images.push_back(io::read_depth_png(p));
-      const io::DepthImage& f = images.back();
-      if (f.width != K.width || f.height != K.height)
-        throw io::InputError(p.string() + ": " + std::to_string(f.width) + "x" +
-                             std::to_string(f.height) + " does not match the intrinsics (" +
-                             k.string() + ": " + std::to_string(K.width) + "x" +
-                             std::to_string(K.height) + ")");
-    }
+    const std::vector<io::DepthImage> images =
+        read_depth_frames(frames.string(), K, k.string(), "fidelity");
     try {
       return sim::depth_stats(images, K);
     } catch (const std::invalid_argument& e) {
