@@ -902,7 +902,9 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
             far_1 = true;
           }
           // 2 px away: the jump must fall between the neighbour (on this pixel's surface)
-          // and the pixel after it, not be the sum of two steps of a steep slope.
+          // and the pixel after it, not be the sum of two steps of a steep slope. Only
+          // looked at when that band can drop anything (it costs a third of the pass).
+          if (!(e.band_p2 > 0)) continue;
           const int u2 = u + 2 * du[k], v2 = v + 2 * dv[k];
           if (u2 < 0 || u2 >= W || v2 < 0 || v2 >= H) continue;
           const double z2 = clean(u2, v2);
