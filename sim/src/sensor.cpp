@@ -191,6 +191,38 @@ struct Caster {
 
 enum Stream : std::uint64_t { kJitter = 0, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6 };
 
+// A normalized Gaussian of standard deviation s [px], cut at 3 s, with sum k^2 = 1: one
+// 1-D pass keeps unit white noise at unit variance (at the image border the kernel is cut
+// and the variance a little lower).
+std::vector<float> unit_variance_gaussian(double s) {
+  const int R = static_cast<int>(std::ceil(3 * s));
+  std::vector<double> g(static_cast<std::size_t>(2 * R + 1));
+  double sum2 = 0;
+  for (int i = -R; i <= R; ++i) {
+    g[static_cast<std::size_t>(i + R)] = std::exp(-0.5 * i * i / (s * s));
+    sum2 += g[static_cast<std::size_t>(i + R)] * g[static_cast<std::size_t>(i + R)];
+  }
+  std::vector<float> k(g.size());
+  for (std::size_t i = 0; i < g.size(); ++i) k[i] = static_cast<float>(g[i] / std::sqrt(sum2));
+  return k;
+}
+
+// One pass of a separable blur over `lines` lines of `length` samples: sample j of line l
+// is src[l * line_step + j * step]; dst has the same layout.
+void blur_1d(const std::vector<float>& src, std::vector<float>& dst, int lines, int line_step,
+             int length, int step, const std::vector<float>& kernel, int threads) {
+  const int R = static_cast<int>(kernel.size() / 2);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (int l = 0; l < lines; ++l)
+    for (int j = 0; j < length; ++j) {
+      float acc = 0;
+      for (int i = std::max(-R, -j); i <= std::min(R, length - 1 - j); ++i)
+        acc += kernel[static_cast<std::size_t>(i + R)] *
+               src[static_cast<std::size_t>(l) * line_step + static_cast<std::size_t>(j + i) * step];
+      dst[static_cast<std::size_t>(l) * line_step + static_cast<std::size_t>(j) * step] = acc;
+    }
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -311,7 +343,8 @@ struct Sensor::Impl {
   std::vector<float> cos_c, cos_p, reflect;
   std::vector<std::uint8_t> lit, hole, label_no_occluders;
   std::vector<bool> occluder_on;  // whether each occluder's instance is enabled
-  std::vector<float> white, blur_rows, field;  // correlated axial noise (see render)
+  std::vector<float> blur_kernel;              // correlated axial noise, set at set-up
+  std::vector<float> white, blur_rows, field;  // its per-frame buffers (see render)
   Eigen::AlignedBox3d component_box;  // a component's bounds in its own frame K
   std::vector<Eigen::AlignedBox3d> occluder_box;  // each occluder's bounds in its own frame
   SensorTimes times;
@@ -417,6 +450,8 @@ Sensor::Sensor(const SensorParams& params, const ComponentGeometry& geometry,
   m.p = params;
   m.count = geometry.count;
   m.occluders = std::move(occluders);
+  if (params.noise.axial.correlation_px > 0)
+    m.blur_kernel = unit_variance_gaussian(params.noise.axial.correlation_px);
   // Meshes first: a missing file fails before Embree is set up.
   const TriangleMesh component = component_mesh(geometry, params.component_segments);
   std::vector<TriangleMesh> occluder_meshes, background_meshes;
@@ -817,18 +852,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
         }
   }
   if (correlated && bu1 >= 0) {
-    const double s = noise.axial.correlation_px;
-    const int R = static_cast<int>(std::ceil(3 * s));
-    // Each 1-D pass scaled to sum k^2 = 1 keeps unit variance (at the image border the
-    // kernel is cut and the variance a little lower).
-    std::vector<double> g(static_cast<std::size_t>(2 * R + 1));
-    double sum2 = 0;
-    for (int i = -R; i <= R; ++i) {
-      g[static_cast<std::size_t>(i + R)] = std::exp(-0.5 * i * i / (s * s));
-      sum2 += g[static_cast<std::size_t>(i + R)] * g[static_cast<std::size_t>(i + R)];
-    }
-    std::vector<float> kernel(g.size());
-    for (std::size_t i = 0; i < g.size(); ++i) kernel[i] = static_cast<float>(g[i] / std::sqrt(sum2));
+    const int R = static_cast<int>(m.blur_kernel.size() / 2);
     const int fu0 = std::max(0, bu0 - R), fu1 = std::min(W - 1, bu1 + R);
     const int fv0 = std::max(0, bv0 - R), fv1 = std::min(H - 1, bv1 + R);
     const int fw = fu1 - fu0 + 1, fh = fv1 - fv0 + 1;
@@ -840,28 +864,11 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       for (int u = fu0; u <= fu1; ++u)
         m.white[static_cast<std::size_t>(v - fv0) * fw + (u - fu0)] = static_cast<float>(
             normal(pixel_key(frame_seed, static_cast<std::size_t>(v) * W + u), kAxial));
-#pragma omp parallel for schedule(static) num_threads(threads)
+    blur_1d(m.white, m.blur_rows, fh, fw, fw, 1, m.blur_kernel, threads);  // along rows
+    blur_1d(m.blur_rows, m.white, fw, 1, fh, fw, m.blur_kernel, threads);  // along columns
     for (int y = 0; y < fh; ++y)
-      for (int x = 0; x < fw; ++x) {
-        float acc = 0;
-        for (int i = -R; i <= R; ++i) {
-          const int xx = x + i;
-          if (xx >= 0 && xx < fw)
-            acc += kernel[static_cast<std::size_t>(i + R)] * m.white[static_cast<std::size_t>(y) * fw + xx];
-        }
-        m.blur_rows[static_cast<std::size_t>(y) * fw + x] = acc;
-      }
-#pragma omp parallel for schedule(static) num_threads(threads)
-    for (int y = 0; y < fh; ++y)
-      for (int x = 0; x < fw; ++x) {
-        float acc = 0;
-        for (int i = -R; i <= R; ++i) {
-          const int yy = y + i;
-          if (yy >= 0 && yy < fh)
-            acc += kernel[static_cast<std::size_t>(i + R)] * m.blur_rows[static_cast<std::size_t>(yy) * fw + x];
-        }
-        m.field[static_cast<std::size_t>(y + fv0) * W + (x + fu0)] = acc;
-      }
+      std::copy_n(m.white.begin() + static_cast<std::ptrdiff_t>(y) * fw, fw,
+                  m.field.begin() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0);
   }
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = m.p.camera.z_min, z_max = m.p.camera.z_max;
