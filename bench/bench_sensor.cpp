@@ -13,7 +13,8 @@
 namespace {
 using namespace linksight::sim;
 
-void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractParams::Mode mode) {
+void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractParams::Mode mode,
+                    bool chain_only = false) {
   Scene scene = load_scene(std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file);
   scene.segmentation.mode = mode;
   auto world = make_world(scene);
@@ -21,11 +22,13 @@ void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractPara
   const Truth truth = world->truth();  // the chain at rest; the hand moves with t
   auto sensor = make_sensor(scene, static_cast<int>(state.range(0)));
   DepthFrame frame;
+  RenderExtent extent;
+  extent.chain_only = chain_only;
   double cast = 0, occlusion = 0, noise = 0, scene_s = 0, extract = 0;
   std::uint64_t f = 0;
   std::size_t points = 0;
   for (auto _ : state) {
-    sensor->render(truth.X_WK, t, scene.seed, f, frame);
+    sensor->render(truth.X_WK, t, scene.seed, f, frame, extent);
     const auto t0 = std::chrono::steady_clock::now();
     const linksight::Cloud cloud = extract_cloud(frame, scene.camera.intrinsics,
                                                  scene.chain.geometry.count, scene.segmentation,
@@ -55,6 +58,14 @@ BENCHMARK_CAPTURE(BM_SensorFrame, link_only, "static.yaml", ExtractParams::Mode:
 // Every ray hits: table, wall, mug, hand and board.
 BENCHMARK_CAPTURE(BM_SensorFrame, occluder_pass_truth, "occluder_pass.yaml",
                   ExtractParams::Mode::truth)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+// The README demo's scene (pusher in contact, table and wall behind): what
+// linksight_bench_episode renders every frame.
+BENCHMARK_CAPTURE(BM_SensorFrame, default_truth, "default.yaml", ExtractParams::Mode::truth)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+// The same, rendering only the chain's box, as `linksight run` does.
+BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only, "default.yaml", ExtractParams::Mode::truth,
+                  true)
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_SensorFrame, occluder_pass_depth, "occluder_pass.yaml",
                   ExtractParams::Mode::depth)

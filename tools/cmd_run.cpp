@@ -80,6 +80,16 @@ int run_run(const RunOptions& o) {
   eo.frames = o.frames;
   eo.threads = o.threads;
   if (!o.compare.empty()) eo.modes = parse_compare(o.compare);
+  std::set<int> overlay_frames;
+  {
+    const int n = sim::camera_frames(scene, o.frames);
+    for (int i = 0; i < std::min(o.overlays, n); ++i)
+      overlay_frames.insert(static_cast<int>((i + 0.5) * n / o.overlays));
+  }
+  // Nothing but the overlays' depth images is written, so the other frames need only the
+  // pixels their clouds come from.
+  eo.chain_only_images = true;
+  eo.whole_frames.assign(overlay_frames.begin(), overlay_frames.end());
   sim::Episode episode(scene, eo);  // a missing mesh fails here, before any output
   const fs::path out = o.out.empty() ? fs::path("out/run") / fs::path(o.scene).stem() : fs::path(o.out);
   io::StagedDir dir(out, o.force);
@@ -100,9 +110,6 @@ int run_run(const RunOptions& o) {
   overlay_csv << std::setprecision(6);
 
   const int n = episode.frames();
-  std::set<int> overlay_frames;
-  for (int i = 0; i < std::min(o.overlays, n); ++i)
-    overlay_frames.insert(static_cast<int>((i + 0.5) * n / o.overlays));
   const auto& modes = episode.modes();
   const io::Intrinsics& K = scene.camera.intrinsics;
 

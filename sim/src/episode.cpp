@@ -1,5 +1,6 @@
 #include "linksight/sim/episode.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <future>
 #include <stdexcept>
@@ -40,6 +41,8 @@ struct Episode::Impl {
   std::vector<EpisodeScorer> scorers;
   Eigen::Isometry3d X_CW;
   Nodes previous_C;  // the last frame's true nodes, camera frame
+  bool chain_only = false;        // render the chain's box only, but for whole_frames
+  std::vector<int> whole_frames;  // sorted
   DepthFrame image;
   Cloud cloud;
   EpisodeFrame out;
@@ -61,6 +64,10 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
   m.modes = options.modes.empty() ? std::vector<TrackerMode>{scene.tracker.mode} : options.modes;
   m.world = make_world(scene);
   m.sensor = make_sensor(scene, options.threads);
+  m.chain_only = options.chain_only_images &&
+                 scene.segmentation.mode == ExtractParams::Mode::truth;
+  m.whole_frames = options.whole_frames;
+  std::sort(m.whole_frames.begin(), m.whole_frames.end());
   for (const TrackerMode mode : m.modes) {
     TrackerParams p = scene.tracker;
     p.mode = mode;
@@ -126,7 +133,12 @@ const EpisodeFrame& Episode::step_frame() {
   m.times.physics = seconds_since(t0);
 
   t0 = std::chrono::steady_clock::now();
-  m.sensor->render(o.truth.X_WK, o.t, m.scene.seed, frame, m.image);
+  RenderExtent extent;
+  extent.chain_only =
+      m.chain_only && !std::binary_search(m.whole_frames.begin(), m.whole_frames.end(), f);
+  // Leaked background pixels lie within leakage_px of a link pixel.
+  extent.margin_px = m.scene.segmentation.leakage > 0 ? m.scene.segmentation.leakage_px : 0;
+  m.sensor->render(o.truth.X_WK, o.t, m.scene.seed, frame, m.image, extent);
   m.times.render = seconds_since(t0);
   t0 = std::chrono::steady_clock::now();
   m.cloud = extract_cloud(m.image, m.scene.camera.intrinsics, m.scene.chain.geometry.count,

@@ -528,19 +528,23 @@ const SensorParams& Sensor::params() const { return impl_->p; }
 const SensorTimes& Sensor::last_times() const { return impl_->times; }
 
 DepthFrame Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t,
-                          std::uint64_t seed, std::uint64_t frame) {
+                          std::uint64_t seed, std::uint64_t frame,
+                          const RenderExtent& extent) {
   DepthFrame out;
-  render(X_WK, t, seed, frame, out);
+  render(X_WK, t, seed, frame, out, extent);
   return out;
 }
 
 void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::uint64_t seed,
-                    std::uint64_t frame, DepthFrame& out) {
+                    std::uint64_t frame, DepthFrame& out, const RenderExtent& extent) {
   Impl& m = *impl_;
   if (static_cast<int>(X_WK.size()) != m.count) {
     throw std::invalid_argument("sensor render: " + std::to_string(X_WK.size()) +
                                 " component poses for a chain of " + std::to_string(m.count));
   }
+  if (extent.margin_px < 0)
+    throw std::invalid_argument("sensor render: extent margin_px = " +
+                                std::to_string(extent.margin_px) + ": must be >= 0");
   const auto t0 = std::chrono::steady_clock::now();
   for (int c = 0; c < m.count; ++c) {
     set_transform(m.chain[c], X_WK[c]);
@@ -650,6 +654,16 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     scene_rect = reachable(all_W.min(), all_W.max(), m.p.camera.X_WC, K, margin_px);
   }
   const PixelRect& chain_rect = moving_rect[0];
+  // What to compute: `inner` gets the noise pass; the clean images reach 2 px further,
+  // as far as the edge model looks, so that inner's pixels match a whole-frame render.
+  auto grown = [&](const PixelRect& r, int by) {
+    if (r.u0 > r.u1 || r.v0 > r.v1) return PixelRect{};
+    return PixelRect{std::max(0, r.u0 - by), std::min(W - 1, r.u1 + by), std::max(0, r.v0 - by),
+                     std::min(H - 1, r.v1 + by)};
+  };
+  const PixelRect inner = extent.chain_only ? grown(chain_rect, extent.margin_px) : everything;
+  const PixelRect cast_rect = extent.chain_only ? grown(inner, 2) : everything;
+  out.rendered = {inner.u0, inner.u1, inner.v0, inner.v1};
 
   auto t1 = std::chrono::steady_clock::now();
   // Rows dealt out in small chunks: the link covers a band of rows, so halves would not
@@ -658,7 +672,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   for (long pk = 0; pk < packets; ++pk) {
     const int v = static_cast<int>(pk / per_row);
     const int u0 = static_cast<int>(pk % per_row) * kPacket;
-    if (!scene_rect.touches(u0, v)) continue;  // the cleared images hold the misses
+    if (!scene_rect.touches(u0, v) || !cast_rect.touches(u0, v))
+      continue;  // the cleared images hold the misses
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // a packet is 16 neighbouring pixels
@@ -667,8 +682,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     Eigen::Vector3f dirs[kPacket];
     for (int i = 0; i < kPacket; ++i) {
       const int u = u0 + i;
-      valid[i] = u < W ? -1 : 0;
-      dirs[i] = u < W ? direction(u, v, static_cast<std::size_t>(v) * W + u) : z_f;
+      valid[i] = cast_rect.contains(u, v) ? -1 : 0;
+      dirs[i] = valid[i] ? direction(u, v, static_cast<std::size_t>(v) * W + u) : z_f;
       set_lane(rh, i, o_Wf, dirs[i], 0xFFFFFFFFu);  // Debian's Embree filters by mask
     }
     // The background first: its hits shorten the rays into the moving part. A ray keeps
@@ -755,6 +770,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     for (long pk = 0; pk < packets; ++pk) {
       const int v = static_cast<int>(pk / per_row);
       const int u0 = static_cast<int>(pk % per_row) * kPacket;
+      if (!chain_rect.touches(u0, v)) continue;  // no lane could be valid below
       alignas(64) RTCRayHit16 rh;
       alignas(64) int valid[kPacket];
       bool any = false;
@@ -874,8 +890,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   const double z_min = m.p.camera.z_min, z_max = m.p.camera.z_max;
   const double unit = K.depth_scale;
 #pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
-  for (int v = 0; v < H; ++v) {
-    for (int u = 0; u < W; ++u) {
+  for (int v = inner.v0; v <= inner.v1; ++v) {
+    for (int u = inner.u0; u <= inner.u1; ++u) {
       const std::size_t pix = static_cast<std::size_t>(v) * W + u;
       const double z0 = out.depth_clean_m[pix];
       if (z0 <= 0) continue;

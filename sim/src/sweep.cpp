@@ -307,6 +307,7 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
   o.frames = spec.frames;
   o.modes = spec.modes;
   o.threads = threads;
+  o.chain_only_images = true;  // a cell writes numbers only, never an image
   Episode e(scene, o);
   const std::size_t m = e.modes().size();
   std::vector<long> non_finite(m, 0);

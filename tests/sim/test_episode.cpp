@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <tuple>
 
 #include "linksight/io/error.hpp"
 #include "linksight/sim/episode.hpp"
@@ -120,6 +121,42 @@ TEST(Episode, SameScoresForAnyThreadCount) {
     return v;
   };
   EXPECT_EQ(errors(1), errors(2));
+}
+
+// chain_only_images renders the chain's box only, yet every cloud, track and score is
+// the whole-frame episode's: leakage on (its margin must be rendered too), the hand in
+// front of the link, and whole_frames rendered whole.
+TEST(Episode, ChainOnlyImagesGiveTheSameCloudsAndScores) {
+  // leakage_px reaches past the chain box's own jitter margin, so the margin must be added.
+  Scene scene = load_scene(kScenes / "occluder_pass.yaml",
+                           {"segmentation.leakage=0.5", "segmentation.leakage_px=15"});
+  auto run = [&](bool chain_only, double from_s) {
+    EpisodeOptions o;
+    o.frames = static_cast<int>(std::lround(from_s * scene.camera.fps)) + 4;
+    o.chain_only_images = chain_only;
+    o.whole_frames = {o.frames - 2};
+    Episode e(scene, o);
+    std::vector<std::vector<float>> clouds;
+    std::vector<double> errors;
+    std::vector<bool> whole;
+    while (e.done() < e.frames()) {
+      const EpisodeFrame& f = e.step();
+      if (f.t < from_s - 1e-9) continue;
+      clouds.push_back(f.cloud->xyz);
+      errors.push_back(f.scores[0].mean_err);
+      errors.push_back(f.image->link_occluded_fraction);
+      whole.push_back(f.image->rendered == PixelBox{0, f.image->width - 1, 0, f.image->height - 1});
+    }
+    return std::make_tuple(clouds, errors, whole);
+  };
+  const auto [clouds_a, errors_a, whole_a] = run(false, 1.8);  // the hand over the middle
+  const auto [clouds_b, errors_b, whole_b] = run(true, 1.8);
+  ASSERT_EQ(clouds_a.size(), 4u);
+  EXPECT_EQ(clouds_a, clouds_b);
+  EXPECT_EQ(errors_a, errors_b);
+  EXPECT_GT(errors_a[1], 0.02) << "the hand was meant to cover part of the link";
+  EXPECT_EQ(whole_a, (std::vector<bool>{true, true, true, true}));
+  EXPECT_EQ(whole_b, (std::vector<bool>{false, false, true, false}));
 }
 
 TEST(Episode, BadOptionsAreNamed) {

@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "linksight/io/error.hpp"
+#include "linksight/sim/scene.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "test_support.hpp"
 
@@ -446,6 +447,64 @@ TEST(Sensor, CullingLeavesTheImagesUnchanged) {
     EXPECT_EQ(a.visible_px, b.visible_px) << "t = " << t;
     EXPECT_EQ(a.visible_px_unoccluded, b.visible_px_unoccluded) << "t = " << t;
     EXPECT_GT(b.link_occluded_fraction, 0.0) << "t = " << t;
+  }
+}
+
+// RenderExtent::chain_only: inside the box it reports, every image is the whole-frame
+// render's, bit for bit; outside, every pixel is a miss. The README demo's scene with
+// everything that reads neighbours or draws per pixel switched on: the 2-px edge band,
+// flying pixels, correlated noise, jitter, shadows, and the hand in front of the link.
+TEST(Sensor, ChainOnlyRenderMatchesTheWholeFrameInsideItsBox) {
+  Scene scene = load_scene(std::filesystem::path(LINKSIGHT_SCENE_DIR) / "default.yaml");
+  scene.noise.axial.correlation_px = 1.5;
+  scene.noise.edges.band_p2 = 0.8;
+  scene.noise.edges.p_flying = 0.3;
+  const auto world = make_world(scene);
+  const Truth truth = world->truth();
+  auto sensor = make_sensor(scene, 2);
+  RenderExtent extent;
+  extent.chain_only = true;
+  extent.margin_px = 3;
+  for (const double t : {0.0, 6.5}) {  // the hand is in front of the link at 6.5 s
+    SCOPED_TRACE(t);
+    const DepthFrame a = sensor->render(truth.X_WK, t, 7, 3);
+    const DepthFrame b = sensor->render(truth.X_WK, t, 7, 3, extent);
+    EXPECT_EQ(a.rendered, (PixelBox{0, a.width - 1, 0, a.height - 1}));
+    const PixelBox& box = b.rendered;
+    ASSERT_FALSE(box.empty());
+    EXPECT_LT((box.u1 - box.u0 + 1) * (box.v1 - box.v0 + 1), a.width * a.height / 2)
+        << "the box is not the link's";
+    int link_px = 0, hits_outside = 0;
+    for (int v = 0; v < a.height; ++v) {
+      for (int u = 0; u < a.width; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v) * a.width + u;
+        if (box.contains(u, v)) {
+          ASSERT_EQ(a.depth.data[i], b.depth.data[i]) << u << ", " << v;
+          ASSERT_EQ(a.depth_m[i], b.depth_m[i]) << u << ", " << v;
+          ASSERT_EQ(a.label[i], b.label[i]) << u << ", " << v;
+          ASSERT_EQ(a.depth_clean_m[i], b.depth_clean_m[i]) << u << ", " << v;
+        } else {
+          EXPECT_GE(a.label[i], kLabelOccluder0) << "a link pixel outside the box";
+          hits_outside += b.depth.data[i] != 0;
+        }
+        link_px += a.label[i] < kLabelOccluder0;
+      }
+    }
+    EXPECT_GT(link_px, 1000);
+    EXPECT_EQ(hits_outside, 0);
+    EXPECT_EQ(a.visible_px, b.visible_px);
+    EXPECT_EQ(a.visible_px_unoccluded, b.visible_px_unoccluded);
+    EXPECT_EQ(a.link_occluded_fraction, b.link_occluded_fraction);
+    if (t > 6) {
+      EXPECT_GT(b.link_occluded_fraction, 0.05);
+    }
+  }
+  extent.margin_px = -1;
+  try {
+    (void)sensor->render(truth.X_WK, 0.0, 7, 3, extent);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("margin_px = -1"), std::string::npos) << e.what();
   }
 }
 

@@ -407,6 +407,21 @@ TEST_F(Cli, RunWritesScoresSummaryAndFigures) {
   EXPECT_TRUE(fs::exists(out / "overlays" / "depth_000001.png"));
 }
 
+// The run renders the chain's box only, but the overlays' depth images are whole frames:
+// on the README demo's scene, the table and the wall fill most of them.
+TEST_F(Cli, RunOverlayDepthImagesAreWholeFrames) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml";
+  const CliRun r = run("run " + scene + " --frames 4 --overlays 2 --no-figures --out " +
+                       out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* png : {"depth_000001.png", "depth_000003.png"}) {
+    ASSERT_TRUE(fs::exists(out / "overlays" / png)) << png;
+    const io::DepthImage d = io::read_depth_png(out / "overlays" / png);
+    const auto valid = std::count_if(d.data.begin(), d.data.end(), [](auto z) { return z > 0; });
+    EXPECT_GT(valid, static_cast<long>(d.data.size() / 2)) << png << ": not a whole frame";
+  }
+}
+
 TEST_F(Cli, RunBadInputLeavesNothing) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
   auto bad = [&](const std::string& args, const std::string& names) {

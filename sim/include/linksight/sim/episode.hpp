@@ -19,6 +19,14 @@ struct EpisodeOptions {
   /// with the scene's tracker settings and only the mode changed.
   std::vector<TrackerMode> modes;
   int threads = 0;  ///< sensor threads (0: the OpenMP default)
+  /// When the scene segments by label (ExtractParams::Mode::truth), render only the
+  /// pixels the cloud can be made of: the chain's box grown by the leakage margin (see
+  /// RenderExtent). Clouds, tracks and scores are the same as with whole frames; the
+  /// images outside the box are misses. Ignored for depth segmentation, which reads the
+  /// whole image.
+  bool chain_only_images = false;
+  /// Frames rendered whole even so, e.g. those written out as figures.
+  std::vector<int> whole_frames;
   ScoreParams score;
   void validate() const;  ///< throws std::invalid_argument naming the field
 };

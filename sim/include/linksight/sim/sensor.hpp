@@ -74,9 +74,33 @@ struct SensorParams {
   void validate() const;        ///< throws std::invalid_argument naming the field
 };
 
+/// Pixels [u0, u1] x [v0, v1], inclusive; empty when u0 > u1 or v0 > v1.
+struct PixelBox {
+  int u0 = 0, u1 = -1, v0 = 0, v1 = -1;
+  [[nodiscard]] bool empty() const { return u0 > u1 || v0 > v1; }
+  [[nodiscard]] bool contains(int u, int v) const {
+    return v >= v0 && v <= v1 && u >= u0 && u <= u1;
+  }
+  friend bool operator==(const PixelBox&, const PixelBox&) = default;
+};
+
+/// Which pixels render() computes.
+struct RenderExtent {
+  /// Only the pixels the chain can be seen in (its bounds' projection, widened by the
+  /// largest jitter), grown by `margin_px`. Every other pixel is left as a miss. Inside,
+  /// the images are those of a whole-frame render, bit for bit: the edge model's 2-px
+  /// reach is cast too. What a label-segmented cloud needs, at a fraction of the cost of
+  /// a frame where every ray hits the background.
+  bool chain_only = false;
+  int margin_px = 0;  ///< [px], >= 0; cover ExtractParams::leakage_px
+};
+
 /// One rendered frame. Images are row-major, width x height.
 struct DepthFrame {
   int width = 0, height = 0;
+  /// The pixels rendered: the whole image, or the chain's box (RenderExtent::chain_only).
+  /// Outside it, every image holds a miss.
+  PixelBox rendered;
   io::DepthImage depth;               ///< sensor units (intrinsics.depth_scale), 0 = none
   std::vector<float> depth_m;         ///< [m], 0 = none (quantized when noise.quantize)
   std::vector<float> depth_clean_m;   ///< noise-free depth along the cast ray [m], 0 = nothing hit
@@ -107,11 +131,13 @@ class Sensor {
 
   /// Renders the instant `t` [s]: component frames X_WK (count of them) [W], occluders
   /// at their path poses. Noise draws come from (seed, frame) and the pixel index only,
-  /// so the result is the same for any thread count. Reuses `out`'s buffers.
+  /// so the result is the same for any thread count. Reuses `out`'s buffers. Throws
+  /// std::invalid_argument for a negative extent margin.
   void render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::uint64_t seed,
-              std::uint64_t frame, DepthFrame& out);
+              std::uint64_t frame, DepthFrame& out, const RenderExtent& extent = {});
   [[nodiscard]] DepthFrame render(const std::vector<Eigen::Isometry3d>& X_WK, double t,
-                                  std::uint64_t seed, std::uint64_t frame);
+                                  std::uint64_t seed, std::uint64_t frame,
+                                  const RenderExtent& extent = {});
 
   [[nodiscard]] const SensorParams& params() const;
   [[nodiscard]] const SensorTimes& last_times() const;
