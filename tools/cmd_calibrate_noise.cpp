@@ -43,7 +43,8 @@ std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int 
     << "}\n"
     << "  shadow: {baseline_m: " << n.shadow.baseline << "}\n"
     << "  dropouts: {hole_rate: " << n.dropouts.hole_rate
-    << ", hole_radius_px: " << n.dropouts.hole_radius_px << "}\n"
+    << ", hole_median_px: " << n.dropouts.hole_median_px
+    << ", hole_p90_px: " << n.dropouts.hole_p90_px << "}\n"
     << "  edges: {band_p1: " << n.edges.band_p1 << ", band_p2: " << n.edges.band_p2
     << ", p_drop: " << n.edges.p_drop << ", p_flying: " << n.edges.p_flying
     << ", flying_position: " << n.edges.flying_position
@@ -82,6 +83,9 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
           {"baseline_mm", s.baseline * 1e3},
           {"flying_rate", s.flying_rate},
           {"flying_position", s.flying_position},
+          {"flying_position_iqr", s.flying_iqr},
+          {"flying_per_discontinuity", s.flying_per_edge},
+          {"valid_fraction", s.pixels > 0 ? static_cast<double>(s.valid_px) / s.pixels : 0.0},
           {"holes_per_frame", s.holes_per_frame},
           {"hole_sizes_px", s.hole_sizes}};
 }
@@ -124,7 +128,9 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
                                 : "undecided")
      << ", baseline " << s.baseline * 1e3 << " mm\n"
      << "flying pixels: " << 100 * s.flying_rate << "% of the valid pixels next to a band, at "
-     << std::setprecision(2) << s.flying_position << " of the way from near to far\n";
+     << std::setprecision(2) << s.flying_position << " (IQR " << s.flying_iqr
+     << ") of the way from near to far, " << std::setprecision(3) << s.flying_per_edge
+     << " of the discontinuities hold a lone one\n";
   std::vector<int> h = s.hole_sizes;
   std::sort(h.begin(), h.end());
   os << std::setprecision(1) << "interior holes: " << s.holes_per_frame << " per frame";

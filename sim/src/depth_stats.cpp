@@ -138,7 +138,7 @@ class Frame {
 
   // Discontinuities along rows, between two stable valid pixels (each with a valid
   // neighbour on its outer side within a quarter of the jump).
-  void edges(std::vector<Edge>& out, long& flying, long& neighbours,
+  void edges(std::vector<Edge>& out, long& flying, long& lone, long& neighbours,
              std::vector<double>& positions) const {
     const double calm = 0.25 * p_.edge_jump;
     for (int v = 0; v < H_; ++v) {
@@ -170,6 +170,7 @@ class Frame {
           e.first_invalid = !valid(from + step, v);
           e.second_invalid = b - u >= 3 && !valid(from + 2 * step, v);
           long here_valid = 2;  // A and B
+          int between = 0;
           for (int w = u + 1; w < b; ++w) {
             if (!valid(w, v)) {
               ++e.invalid;
@@ -179,9 +180,13 @@ class Frame {
             const double pos = (z(w, v) - e.z_near) / (e.z_far - e.z_near);
             if (pos > 0.1 && pos < 0.9) {
               ++flying;
+              ++between;
               positions.push_back(pos);
             }
           }
+          // A lone pixel in the gap: what a flying pixel makes. A side face seen at grazing
+          // incidence leaves a run of them instead.
+          if (between == 1) ++lone;
           if (e.invalid > 0 || b == u + 1) neighbours += here_valid;
           out.push_back(e);
         }
@@ -190,25 +195,27 @@ class Frame {
     }
   }
 
-  // Interior holes: invalid 4-connected regions not touching the border, enclosed by
-  // valid pixels of one surface (their depths within the edge jump).
+  // Interior holes: invalid 4-connected regions with nothing else invalid within 2 px
+  // (not touching the border, a band or another hole: jitter leaves stray pixels along
+  // shadow edges), enclosed by valid pixels of one surface (their depths within the edge
+  // jump).
   void holes(std::vector<int>& sizes) const {
-    std::vector<char> seen(img_.data.size(), 0);
-    std::vector<int> stack;
+    std::vector<int> comp(img_.data.size(), -1);
+    std::vector<int> stack, members;
+    int id = 0;
     for (int v0 = 0; v0 < H_; ++v0)
       for (int u0 = 0; u0 < W_; ++u0) {
-        if (valid(u0, v0) || seen[idx(u0, v0)]) continue;
-        int size = 0;
-        bool border = false;
+        if (valid(u0, v0) || comp[idx(u0, v0)] >= 0) continue;
+        bool isolated = true;
         double lo = 1e9, hi = -1e9;
+        members.clear();
         stack.assign(1, static_cast<int>(idx(u0, v0)));
-        seen[idx(u0, v0)] = 1;
+        comp[idx(u0, v0)] = id;
         while (!stack.empty()) {
           const int k = stack.back();
           stack.pop_back();
-          ++size;
+          members.push_back(k);
           const int u = k % W_, v = k / W_;
-          border = border || u == 0 || v == 0 || u == W_ - 1 || v == H_ - 1;
           const int du[4] = {1, -1, 0, 0}, dv[4] = {0, 0, 1, -1};
           for (int d = 0; d < 4; ++d) {
             const int uu = u + du[d], vv = v + dv[d];
@@ -217,13 +224,24 @@ class Frame {
             if (valid(uu, vv)) {
               lo = std::min(lo, z(uu, vv));
               hi = std::max(hi, z(uu, vv));
-            } else if (!seen[kk]) {
-              seen[kk] = 1;
+            } else if (comp[kk] < 0) {
+              comp[kk] = id;
               stack.push_back(static_cast<int>(kk));
             }
           }
         }
-        if (!border && size <= p_.max_hole_px && hi - lo <= p_.edge_jump) sizes.push_back(size);
+        const int size = static_cast<int>(members.size());
+        for (std::size_t i = 0; i < members.size() && isolated && size <= p_.max_hole_px; ++i) {
+          const int u = members[i] % W_, v = members[i] / W_;
+          for (int dv = -2; dv <= 2 && isolated; ++dv)
+            for (int du = -2; du <= 2 && isolated; ++du) {
+              const int uu = u + du, vv = v + dv;
+              isolated = uu >= 0 && vv >= 0 && uu < W_ && vv < H_ &&
+                         (valid(uu, vv) || comp[idx(uu, vv)] == id);
+            }
+        }
+        ++id;
+        if (isolated && size <= p_.max_hole_px && hi - lo <= p_.edge_jump) sizes.push_back(size);
       }
   }
 
@@ -317,7 +335,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   s.window = p.window;
   CorrelationSums corr;
   std::vector<Edge> edges;
-  long flying = 0;
+  long flying = 0, lone = 0;
   std::vector<double> positions;
   std::array<long, 256> diffs{};
   for (std::size_t f = 0; f < frames.size(); ++f) {
@@ -338,7 +356,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
         if (a && b && d > 0 && d < 256) ++diffs[static_cast<std::size_t>(d)];
       }
     fr.windows(s.samples, corr);
-    fr.edges(edges, flying, s.band_neighbours, positions);
+    fr.edges(edges, flying, lone, s.band_neighbours, positions);
     fr.holes(s.hole_sizes);
   }
   if (s.valid_px == 0) throw std::invalid_argument("depth statistics: no valid pixel in any frame");
@@ -409,8 +427,19 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
     s.projector_side = +1;
     s.baseline = r.slope;
   }
+  s.flying = flying;
   s.flying_rate = s.band_neighbours > 0 ? static_cast<double>(flying) / s.band_neighbours : 0;
   s.flying_position = median(positions);
+  if (!positions.empty()) {
+    std::sort(positions.begin(), positions.end());
+    const auto at = [&](double q) {
+      return positions[static_cast<std::size_t>(q * static_cast<double>(positions.size() - 1))];
+    };
+    s.flying_iqr = at(0.75) - at(0.25);
+  }
+  const int crossings = s.near_left.edges + s.near_right.edges;
+  s.flying_per_edge = crossings > 0 ? static_cast<double>(lone) / crossings : 0;
+  s.pixels = static_cast<long>(K.width) * K.height * s.frames;
   s.holes_per_frame = static_cast<double>(s.hole_sizes.size()) / s.frames;
   return s;
 }
@@ -559,12 +588,20 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
                         "): the shadows decide no side (too few edges, or widths that do "
                         "not follow the depth gap)");
   }
-  if (!s.hole_sizes.empty()) {
-    fit.params.dropouts.hole_rate = s.holes_per_frame;
+  if (!s.hole_sizes.empty() && s.valid_px > 0) {
+    // Holes fall anywhere; they show only on a valid surface, and only away from its edges.
+    Dropouts& d = fit.params.dropouts;
+    d.hole_rate = std::min(1e4, s.holes_per_frame * static_cast<double>(s.pixels) /
+                                    static_cast<double>(s.valid_px));
     std::vector<double> sizes(s.hole_sizes.begin(), s.hole_sizes.end());
     std::sort(sizes.begin(), sizes.end());
-    const double p90 = sizes[static_cast<std::size_t>(0.9 * static_cast<double>(sizes.size() - 1))];
-    fit.params.dropouts.hole_radius_px = std::max(1.0, std::sqrt(p90 / std::numbers::pi));
+    const auto at = [&](double q) {
+      return sizes[static_cast<std::size_t>(q * static_cast<double>(sizes.size() - 1))];
+    };
+    d.hole_median_px = std::clamp(at(0.5), 1.0, static_cast<double>(Dropouts::kMaxHolePx));
+    d.hole_p90_px = std::clamp(at(0.9), d.hole_median_px, static_cast<double>(Dropouts::kMaxHolePx));
+  } else {
+    fit.notes.emplace_back("dropouts.hole_rate, hole_median_px, hole_p90_px kept: no interior hole");
   }
   char line[256];
   // The edge band, on the side away from the shadow (the shadow's own band is geometry).
@@ -586,12 +623,28 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
     fit.notes.emplace_back("edges.band_p1, band_p2, p_drop kept: no side decided, or under 20 "
                            "edges on the side away from the shadow");
   }
-  if (s.flying_rate > 0) e.flying_position = s.flying_position;
-  std::snprintf(line, sizeof line,
-                "flying pixels %.1f%% of band neighbours at %.2f of the gap: flying_position "
-                "fitted, edges.p_flying and flying_spread kept (the rate also counts "
-                "grazing-surface pixels, which p_flying does not make)",
-                100 * s.flying_rate, s.flying_position);
+  if (s.flying > 0 && e.p_drop < 1) {
+    // The model moves a near-side edge pixel that was not dropped (1 - p_drop) with
+    // p_flying, to a position uniform in flying_position +- flying_spread; the statistic
+    // counts it when it lands 10-90% of the way across. An interquartile range of a
+    // uniform is its half-width.
+    e.flying_position = s.flying_position;
+    e.flying_spread = std::clamp(s.flying_iqr, 0.0, 0.5);
+    const double lo = std::max(0.0, e.flying_position - e.flying_spread);
+    const double hi = std::min(1.0, e.flying_position + e.flying_spread);
+    const double seen =
+        hi > lo ? std::max(0.0, std::min(hi, 0.9) - std::max(lo, 0.1)) / (hi - lo) : 1.0;
+    e.p_flying = std::clamp(s.flying_per_edge / ((1 - e.p_drop) * std::max(seen, 0.05)), 0.0, 1.0);
+    std::snprintf(line, sizeof line,
+                  "lone flying pixels at %.3f of the discontinuities (flying pixels %.1f%% of "
+                  "band neighbours) at %.2f +- %.2f of the gap: edges.p_flying given p_drop "
+                  "%.2f",
+                  s.flying_per_edge, 100 * s.flying_rate, s.flying_position, s.flying_iqr,
+                  e.p_drop);
+  } else {
+    std::snprintf(line, sizeof line, "edges.p_flying, flying_position, flying_spread kept: %s",
+                  s.flying > 0 ? "p_drop is 1" : "no flying pixel");
+  }
   fit.notes.emplace_back(line);
   fit.notes.emplace_back("lateral.sigma_px and dropouts.max_incidence, min_signal kept: not "
                          "measured");

@@ -58,8 +58,10 @@ void NoiseParams::validate() const {
         dropouts.min_signal, "must be >= 0");
   check(dropouts.hole_rate >= 0 && dropouts.hole_rate <= 1e4, "dropouts.hole_rate",
         dropouts.hole_rate, "must be in [0, 10000]");
-  check(dropouts.hole_radius_px >= 1 && dropouts.hole_radius_px <= 100, "dropouts.hole_radius_px",
-        dropouts.hole_radius_px, "must be in [1, 100]");
+  check(dropouts.hole_median_px >= 1 && dropouts.hole_median_px <= Dropouts::kMaxHolePx,
+        "dropouts.hole_median_px", dropouts.hole_median_px, "must be in [1, 1000] px");
+  check(dropouts.hole_p90_px >= dropouts.hole_median_px && dropouts.hole_p90_px <= Dropouts::kMaxHolePx,
+        "dropouts.hole_p90_px", dropouts.hole_p90_px, "must be in [hole_median_px, 1000] px");
   check(edges.jump > 0 && std::isfinite(edges.jump), "edges.jump", edges.jump, "must be > 0");
   check(edges.p_drop >= 0 && edges.p_drop <= 1, "edges.p_drop", edges.p_drop, "must be in [0, 1]");
   check(edges.band_p1 >= 0 && edges.band_p1 <= 1, "edges.band_p1", edges.band_p1, "must be in [0, 1]");

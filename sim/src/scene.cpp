@@ -365,14 +365,18 @@ void read_noise(const Reader& r, const YAML::Node& n, NoiseParams& noise) {
   }
   if (const YAML::Node d = n["dropouts"]) {
     r.only(d, "noise.dropouts",
-           {"enabled", "max_incidence_deg", "min_signal", "hole_rate", "hole_radius_px"});
+           {"enabled", "max_incidence_deg", "min_signal", "hole_rate", "hole_median_px",
+            "hole_p90_px"});
     Dropouts& x = noise.dropouts;
     x.enabled = r.boolean(d, "noise.dropouts", "enabled", true);
     x.max_incidence =
         r.number(d, "noise.dropouts", "max_incidence_deg", x.max_incidence / deg, 0.1, 90) * deg;
     x.min_signal = r.number(d, "noise.dropouts", "min_signal", x.min_signal, 0.0, 1e6);
     x.hole_rate = r.number(d, "noise.dropouts", "hole_rate", x.hole_rate, 0.0, 1e4);
-    x.hole_radius_px = r.number(d, "noise.dropouts", "hole_radius_px", x.hole_radius_px, 1, 100);
+    x.hole_median_px =
+        r.number(d, "noise.dropouts", "hole_median_px", x.hole_median_px, 1, Dropouts::kMaxHolePx);
+    x.hole_p90_px = r.number(d, "noise.dropouts", "hole_p90_px", x.hole_p90_px, x.hole_median_px,
+                             Dropouts::kMaxHolePx);
   }
   if (const YAML::Node e = n["edges"]) {
     r.only(e, "noise.edges", {"enabled", "jump_m", "band_p1", "band_p2", "p_drop", "p_flying",

@@ -843,15 +843,27 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       const double g = std::sqrt(-2 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
       holes = std::max(0, static_cast<int>(std::lround(rate + std::sqrt(rate) * g)));
     }
+    // Sizes log-normal: ln A ~ N(ln median, s^2) with s from the 90th percentile.
+    const double mu = std::log(noise.dropouts.hole_median_px);
+    const double s_ln = std::log(noise.dropouts.hole_p90_px / noise.dropouts.hole_median_px) /
+                        1.2815515655446004;  // the standard normal's 90th percentile
+    std::vector<int> blob;
     for (int h = 0; h < holes; ++h) {
-      const double cu = next() * W, cv = next() * H;
-      const double r = 1.0 + next() * (noise.dropouts.hole_radius_px - 1.0);
-      const int v0 = std::max(0, static_cast<int>(cv - r)), v1 = std::min(H - 1, static_cast<int>(cv + r));
-      const int u0 = std::max(0, static_cast<int>(cu - r)), u1 = std::min(W - 1, static_cast<int>(cu + r));
-      for (int v = v0; v <= v1; ++v)
-        for (int u = u0; u <= u1; ++u)
-          if ((u + 0.5 - cu) * (u + 0.5 - cu) + (v + 0.5 - cv) * (v + 0.5 - cv) <= r * r)
-            m.hole[static_cast<std::size_t>(v) * W + u] = 1;
+      const int u0 = std::min(W - 1, static_cast<int>(next() * W));
+      const int v0 = std::min(H - 1, static_cast<int>(next() * H));
+      const double g = inverse_normal_cdf(std::clamp(next(), 1e-12, 1 - 1e-12));
+      const int area = static_cast<int>(std::clamp(std::lround(std::exp(mu + s_ln * g)), 1L,
+                                                   static_cast<long>(Dropouts::kMaxHolePx)));
+      // Grown one 4-neighbour of a random member at a time: a compact, ragged blob.
+      blob.assign(1, v0 * W + u0);
+      for (int tries = 0; static_cast<int>(blob.size()) < area && tries < 50 * area; ++tries) {
+        const int k = blob[std::min(blob.size() - 1, static_cast<std::size_t>(next() * blob.size()))];
+        const int d = std::min(3, static_cast<int>(next() * 4));
+        const int u = k % W + (d == 0) - (d == 1), v = k / W + (d == 2) - (d == 3);
+        if (u < 0 || u >= W || v < 0 || v >= H) continue;
+        if (std::find(blob.begin(), blob.end(), v * W + u) == blob.end()) blob.push_back(v * W + u);
+      }
+      for (const int k : blob) m.hole[static_cast<std::size_t>(k)] = 1;
     }
   }
   // Correlated axial noise: a white field over the box of hit pixels (plus the kernel's

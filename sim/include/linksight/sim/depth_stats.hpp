@@ -85,11 +85,17 @@ struct DepthStats {
   /// the median of (z - z_near) / (z_far - z_near).
   double flying_rate = 0;
   double flying_position = 0;
+  double flying_iqr = 0;         ///< interquartile range of that position
   long band_neighbours = 0;
+  long flying = 0;               ///< flying pixels counted
+  /// Share of discontinuities (both sides) with one lone valid pixel in the gap, 10-90%
+  /// across: a flying pixel, not a side face seen at grazing incidence.
+  double flying_per_edge = 0;
   /// Interior holes: 4-connected invalid regions enclosed by valid pixels of one surface
-  /// (no discontinuity around them).
+  /// (no discontinuity around them), with nothing else invalid within 2 px.
   std::vector<int> hole_sizes;  ///< [px], every hole of every frame
   double holes_per_frame = 0;
+  long pixels = 0;  ///< width x height x frames: valid_px / pixels is the valid fraction
 };
 
 /// Statistics of `frames` (raw depth, 0 = invalid) with `intrinsics` (size and depth unit
@@ -133,8 +139,10 @@ struct NoiseFit {
 ///   a + c z^2 leaves;
 /// - the projector baseline, signed, when the shadows decide a side;
 /// - the edge band on the side away from the shadow (band_p1, band_p2 given start's
-///   p_drop) and the flying pixels' position;
-/// - holes per frame and their size.
+///   p_drop); the flying pixels' position and spread (median and interquartile range),
+///   and p_flying from the flying pixels per discontinuity given p_drop;
+/// - the hole rate (holes per frame over the valid fraction of the image: a hole only
+///   shows on a surface) and the median and 90th percentile of hole sizes.
 /// Every term kept from `start`, and every measurement the model cannot follow, gets a note.
 [[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start);
 

@@ -50,10 +50,13 @@ struct Dropouts {
   /// Low-signal proxy: reflectance * cos(theta_p) / z^2 [1/m^2] below this loses the
   /// pixel. 0.1 keeps a reflectance-1 surface to 1.5 m up to about 76 degrees (estimate).
   double min_signal = 0.1;
-  /// Random holes: on average `hole_rate` discs per frame, radius uniform in
-  /// [1, hole_radius_px] (estimate: a few small holes per frame).
+  /// Random holes: on average `hole_rate` per frame (Poisson), each a 4-connected blob
+  /// grown from a uniformly placed pixel to an area drawn log-normal with this median and
+  /// 90th percentile, rounded, in [1, kMaxHolePx] px.
   double hole_rate = 5.0;
-  double hole_radius_px = 3.0;  ///< [px]
+  double hole_median_px = 2.0;  ///< [px] of area
+  double hole_p90_px = 17.0;    ///< [px] of area, >= hole_median_px
+  static constexpr int kMaxHolePx = 1000;
 };
 
 /// Depth discontinuities, where two 4-neighbours' noise-free depths differ by more than
