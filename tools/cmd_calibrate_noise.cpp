@@ -94,21 +94,29 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
   os << std::fixed;
   os << s.frames << " frames, " << s.valid_px << " valid pixels, " << s.windows
      << " flat 15x15 windows; depth step " << std::setprecision(3) << s.depth_step * 1e3
-     << " mm\n\nplane-fit sigma by depth (incidence < 30 deg):\n";
+     << " mm\n\nplane-fit sigma by depth (incidence < 30 deg; the model at each bin's windows):\n";
   // The fitted model as the plane fit would read it (its correlation lowers the reading).
   const double read = std::sqrt(sim::window_response(fit.params.axial.correlation_px).variance_factor);
+  // The model as read: its median over the bin's own windows (their depths and angles).
   auto bins = [&](const std::vector<sim::SigmaBin>& v, double unit, const char* what) {
+    const bool by_depth = unit == 1.0;
     for (const auto& b : v) {
       if (b.windows == 0) continue;
+      std::vector<double> model;
+      for (const auto& w : s.samples) {
+        const double x = by_depth ? w.z : w.angle;
+        if (x < b.lo || x >= b.hi || (by_depth && w.angle >= sim::DepthStatsParams{}.depth_bin_max_angle)) continue;
+        model.push_back(read * fit.params.axial.sigma(w.z, w.angle));
+      }
+      std::sort(model.begin(), model.end());
       os << "  " << what << " [" << std::setprecision(unit > 1 ? 0 : 2) << b.lo * unit << ", "
          << b.hi * unit << ")  windows " << std::setw(5) << b.windows << "  sigma_mm "
          << std::setprecision(2) << b.sigma * 1e3 << "  fitted_model_mm "
-         << read * fit.params.axial.sigma(unit > 1 ? 0.7 : b.centre, unit > 1 ? b.centre : 0.0) * 1e3
-         << "\n";
+         << (model.empty() ? 0.0 : model[model.size() / 2]) * 1e3 << "\n";
     }
   };
   bins(s.sigma_by_depth, 1.0, "z_m");
-  os << "plane-fit sigma by incidence (all depths; model at 0.7 m):\n";
+  os << "plane-fit sigma by incidence (all depths):\n";
   bins(s.sigma_by_angle, kDeg, "deg");
   os << std::setprecision(2) << "residual correlation at 1..4 px: " << s.correlation[0] << " "
      << s.correlation[1] << " " << s.correlation[2] << " " << s.correlation[3] << "\n\n";

@@ -1,6 +1,5 @@
 #include "linksight/sim/depth_stats.hpp"
 
-#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -9,6 +8,8 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+
+#include <Eigen/Dense>
 
 namespace linksight::sim {
 
@@ -333,6 +334,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   DepthStats s;
   s.frames = static_cast<int>(frames.size());
   s.window = p.window;
+  s.depth_bin_max_angle = p.depth_bin_max_angle;
   CorrelationSums corr;
   std::vector<Edge> edges;
   long flying = 0, lone = 0;
@@ -410,20 +412,26 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   const EdgeSide& r = s.near_right;
   constexpr int kMinEdges = 20;
   constexpr double kMinSlope = 0.005;  // [m]: below 5 mm no baseline is seen
-  // The shadow always leaves a band there, so the shadow side is the one where valid
-  // pixels jump straight across a gap at most half as often as on the other side, provided
-  // its widths follow the gap. (Slopes and band widths do not decide it: the other side's
-  // bands can widen with the gap too, where a side face seen at grazing incidence drops.)
+  // Two signs of the shadow side, either of which decides it unless the other side shows
+  // one too: the shadow always leaves a band there, so valid pixels jump straight across
+  // a gap at most half as often as on the other side; and its band widths follow the gap
+  // (fit_r), the other side's much less. Either way its widths must grow with the gap.
+  // (Slope and width alone do not decide it: the other side's bands can widen with the
+  // gap too, where a side face seen at grazing incidence drops; and where many gaps are
+  // narrower than a pixel of shadow, the direct jumps of both sides are alike.)
   constexpr double kMinFitR = 0.3;
   auto direct = [](const EdgeSide& e) { return e.edges ? double(e.direct) / e.edges : 1.0; };
   auto shadow_side = [&](const EdgeSide& a, const EdgeSide& other) {
-    return a.edges >= kMinEdges && a.slope > kMinSlope && a.fit_r >= kMinFitR &&
-           direct(a) < 0.5 * direct(other);  // strict: no direct jumps either side decides nothing
+    const bool follows = a.edges >= kMinEdges && a.slope > kMinSlope && a.fit_r >= kMinFitR;
+    const bool fewer_direct = direct(a) < 0.5 * direct(other);  // strict: 0 vs 0 decides nothing
+    const bool fits_better = a.fit_r >= 0.5 && other.fit_r < 0.5 * a.fit_r;
+    return follows && (fewer_direct || fits_better);
   };
-  if (shadow_side(l, r)) {
+  const bool left = shadow_side(l, r), right = shadow_side(r, l);
+  if (left && !right) {
     s.projector_side = -1;
     s.baseline = -l.slope;
-  } else if (shadow_side(r, l)) {
+  } else if (right && !left) {
     s.projector_side = +1;
     s.baseline = r.slope;
   }
@@ -533,53 +541,83 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
   }
   // The plane fit reads sigma * sqrt(variance_factor): undo it.
   const double unbias = 1.0 / std::sqrt(variance_factor);
-  // Eq. of AxialNoise: sigma = a + c z^2 (+ the angle term, kept out by the depth bins'
-  // angle limit). Least squares in relative error, every bin with 10 windows or more alike
-  // (weights 1 / sigma^2): the model should hold at every depth the recording covers, not
-  // only where most windows happen to be.
-  double s1 = 0, sz = 0, szz = 0, sy = 0, szy = 0;
-  int bins = 0;
-  for (const SigmaBin& b : s.sigma_by_depth) {
-    if (b.windows < 10 || !(b.sigma > 0)) continue;
-    const double y = b.sigma * unbias, w = 1.0 / (y * y), x = b.centre * b.centre;
-    s1 += w, sz += w * x, szz += w * x * x, sy += w * y, szy += w * x * y;
-    ++bins;
-  }
-  if (bins >= 2 && szz * s1 - sz * sz > 0) {
-    double c = (s1 * szy - sz * sy) / (s1 * szz - sz * sz);
-    double a = (sy - c * sz) / s1;
-    if (c < 0) c = 0, a = sy / s1;        // no growth with depth seen: constant sigma
-    if (a < 0) a = 0, c = szy / szz;      // through the origin
-    ax.a = a;
-    ax.c = c;
-  } else if (bins == 1) {
-    ax.a = sy / s1 - ax.c * sz / s1;  // one depth: keep c, fit a
-    if (ax.a < 0) ax.a = 0;
-    fit.notes.push_back("axial.c_per_m kept (" + std::to_string(ax.c) +
-                        "): windows at one depth only");
-  } else {
-    fit.notes.push_back("axial a_m, c_per_m kept: no depth bin with 10 flat windows");
-  }
-  // The angle term: k_theta / sqrt(z) * theta^2 / (pi/2 - theta)^2 on what a + c z^2 leaves.
-  double sgg = 0, sge = 0;
-  for (const SigmaBin& b : s.sigma_by_angle) {
-    if (b.windows < 5) continue;
-    std::vector<double> excess, g;
-    for (const DepthStats::Window& w : s.samples) {
-      if (w.angle < b.lo || w.angle >= b.hi) continue;
-      const double th = std::min(w.angle, ax.theta_cap);
-      excess.push_back(w.sigma * unbias - (ax.a + ax.c * w.z * w.z));
-      g.push_back(th * th / ((std::numbers::pi / 2 - th) * (std::numbers::pi / 2 - th)) /
-                  std::sqrt(w.z));
+  // Eq. of AxialNoise: sigma = a + c z^2 + k_theta g(z, theta), g = theta^2 /
+  // (pi/2 - theta)^2 / sqrt(z). Fitted jointly to the depth bins (windows under
+  // depth_bin_max_angle) and the angle bins with 10 windows or more, each bin's model being
+  // the median of the model over its own windows: even under 30 degrees the angle term is
+  // not negligible on real frames, and the depth bins hold different mixes of angles (a
+  // torso face-on, an arm oblique), which a fit of depth alone reads as a sigma that is
+  // not monotone in depth.
+  auto g_of = [&](double z, double angle) {
+    const double th = std::min(angle, ax.theta_cap);
+    return th * th / ((std::numbers::pi / 2 - th) * (std::numbers::pi / 2 - th)) / std::sqrt(z);
+  };
+  struct Bin {
+    std::vector<double> z2, g;
+    double y = 0;  // measured median sigma, unbiased [m]
+  };
+  std::vector<Bin> cells;
+  for (const bool by_depth : {true, false})
+    for (const SigmaBin& b : by_depth ? s.sigma_by_depth : s.sigma_by_angle) {
+      Bin bin;
+      std::vector<double> ys;
+      for (const DepthStats::Window& w : s.samples) {
+        const double x = by_depth ? w.z : w.angle;
+        if (x < b.lo || x >= b.hi || (by_depth && w.angle >= s.depth_bin_max_angle)) continue;
+        bin.z2.push_back(w.z * w.z);
+        bin.g.push_back(g_of(w.z, w.angle));
+        ys.push_back(w.sigma * unbias);
+      }
+      if (ys.size() < 10) continue;
+      bin.y = median(ys);
+      cells.push_back(std::move(bin));
     }
-    const double gb = median(g), eb = median(excess);
-    sgg += b.windows * gb * gb;
-    sge += b.windows * gb * eb;
+  // Minimax in relative error, non-negative: the largest |model / measured - 1| over the
+  // bins is what a comparison of a simulation with the camera (linksight fidelity) sees,
+  // so that is what the fit keeps small. A coarse grid, then a pattern search around its
+  // best point.
+  std::vector<double> model;
+  auto worst = [&](const Eigen::Vector3d& x) {
+    double e = 0;
+    for (const Bin& b : cells) {
+      model.resize(b.z2.size());
+      for (std::size_t i = 0; i < model.size(); ++i) model[i] = x[0] + x[1] * b.z2[i] + x[2] * b.g[i];
+      e = std::max(e, std::abs(median(model) / b.y - 1));
+    }
+    return e;
+  };
+  double best = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d coef = Eigen::Vector3d::Zero();
+  if (cells.size() >= 3) {
+    const Eigen::Vector3d span(1e-3, 3e-3, 1.5e-3);  // a [m], c [1/m], k_theta [m^1.5]
+    constexpr int kSteps = 20;
+    for (int i = 0; i <= kSteps; ++i)
+      for (int j = 0; j <= kSteps; ++j)
+        for (int k = 0; k <= kSteps; ++k) {
+          const Eigen::Vector3d x(span[0] * i / kSteps, span[1] * j / kSteps, span[2] * k / kSteps);
+          const double e = worst(x);
+          if (e < best) best = e, coef = x;
+        }
+    Eigen::Vector3d step = span / kSteps;
+    for (int it = 0; it < 60; ++it) {
+      bool moved = false;
+      for (int d = 0; d < 3; ++d)
+        for (const double sign : {-1.0, 1.0}) {
+          Eigen::Vector3d x = coef;
+          x[d] = std::max(0.0, x[d] + sign * step[d]);
+          const double e = worst(x);
+          if (e < best) best = e, coef = x, moved = true;
+        }
+      if (!moved) step *= 0.5;
+    }
   }
-  if (sgg > 0) {
-    ax.k_theta = std::max(0.0, sge / sgg);
+  if (std::isfinite(best)) {
+    ax.a = coef[0];
+    ax.c = coef[1];
+    ax.k_theta = coef[2];
   } else {
-    fit.notes.push_back("axial.k_theta kept: no angle bin with 5 flat windows");
+    fit.notes.push_back("axial a_m, c_per_m, k_theta kept: under 3 cells of depth x angle "
+                        "with 10 flat windows");
   }
   if (s.projector_side != 0) {
     fit.params.shadow.baseline = s.baseline;

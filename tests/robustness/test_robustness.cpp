@@ -35,6 +35,11 @@ constexpr double kCentredSdfBand = 0.004;
 // the board came within this many frames (0.1 s). Measured: at most 1 at noise <= 1.
 constexpr int kRecoverFrames = 3;
 constexpr double kRecoveredMargin = 0.002;
+// A tip board up to this fraction may cause the one-component slip; the worst frame's error
+// then measures 45-48 mm (node j on ball j-1): band 60 mm, which a slip of two
+// components would break.
+constexpr double kSlipUpTo = 0.10;
+constexpr double kSlipBand = 0.060;
 // The board hides its set fraction of the link while present (the truth occluded
 // fraction, averaged over its frames), and nothing outside its window: else the cell did
 // not test what its axis value says.
@@ -188,10 +193,20 @@ TEST(Robustness, Bands) {
           EXPECT_LT(mr.sdf_before, kCentredSdfBand);
         }
       }
-      // Recovery once the board has gone.
-      if (paper_som && noise <= 1.0 && occl > 0) {
+      // Recovery once the board has gone. Except where a tip board hides only part of
+      // the tip ball: there the paper's re-initialization (its LSQ layout along the
+      // visible cloud) can leave every node one ball toward the base, order kept, and
+      // nothing re-initializes after the board has gone (docs/robustness.md, "one-
+      // component slip"; with the sr300 preset's projector on the image-left since
+      // issue 8, at 10% as well as 5%). There the error must stay that one component.
+      const bool may_slip = at == "tip" && occl <= kSlipUpTo;
+      if (paper_som && noise <= 1.0 && occl > 0 && !may_slip) {
         EXPECT_GE(mr.recover, 0) << "never back within " << kRecoveredMargin * 1e3 << " mm";
         EXPECT_LE(mr.recover, kRecoverFrames);
+      }
+      if (paper_som && noise <= 1.0 && may_slip) {
+        EXPECT_LT(mr.worst, kSlipBand);
+        EXPECT_EQ(mr.swaps, 0);
       }
     }
   }

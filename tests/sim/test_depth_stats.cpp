@@ -27,7 +27,9 @@ constexpr double kCorrelationRelTol = 0.10;
 const std::filesystem::path kReal = std::filesystem::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
 
 // A wall 0.95 m away and three boxes at 0.45-0.75 m: flat surfaces at several depths and
-// vertical edges whose projector shadows fall on the wall. Noise terms as given.
+// vertical edges whose projector shadows fall on the wall; the link is out of view (its
+// balls' rims would add intermediate depths). Noise terms as given, k_theta 1e-4 m^1.5
+// unless `more` sets it.
 std::vector<io::DepthImage> render(const std::string& name, double a, double c, double baseline,
                                    double correlation_px, int frames, io::Intrinsics& K,
                                    const std::vector<std::string>& more = {}) {
@@ -40,7 +42,7 @@ camera:
 noise:
   preset: sr300
 segmentation: {mode: truth}
-base: {waypoints: [{t_s: 0, position_m: [0.0, 0.0, 0.5]}]}
+base: {waypoints: [{t_s: 0, position_m: [0.0, -2.0, 0.5]}]}  # the link behind the camera
 background:
   wall: {position_m: [0.0, 0.25, 0.5], half_extents_m: [1.5, 0.01, 1.0]}
   objects:
@@ -51,7 +53,8 @@ background:
   std::vector<std::string> set = {"noise.axial.a_m=" + std::to_string(a),
                                   "noise.axial.c_per_m=" + std::to_string(c),
                                   "noise.shadow.baseline_m=" + std::to_string(baseline),
-                                  "noise.axial.correlation_px=" + std::to_string(correlation_px)};
+                                  "noise.axial.correlation_px=" + std::to_string(correlation_px),
+                                  "noise.axial.k_theta=0.0001"};
   set.insert(set.end(), more.begin(), more.end());
   const Scene scene = load_scene(dir / "scene.yaml", set);
   K = scene.camera.intrinsics;

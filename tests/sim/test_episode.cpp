@@ -23,6 +23,8 @@ const char* const kShipped[] = {"default",           "static",           "bend_p
 // puts nodes at the mean of the visible front surface, 2/3 of a ball radius (10 mm)
 // in front of the true centre, so the band is not tighter than that.
 constexpr double kQuietErrorBand = 0.025;  // [m]
+// One component's slip after a re-initialization (node j on ball j - 1): 44 mm measured.
+constexpr double kSlipBand = 0.060;  // [m]
 
 TEST(Episode, EveryShippedSceneLoadsAndRunsItsFirstFrames) {
   for (const char* name : kShipped) {
@@ -44,8 +46,16 @@ TEST(Episode, EveryShippedSceneLoadsAndRunsItsFirstFrames) {
     const auto s = e.summaries();
     ASSERT_EQ(s.size(), 2u);
     EXPECT_EQ(s[0].frames, 3);
-    if (std::string(name) != "clutter") {  // depth segmentation keeps mugs and clutter
+    // Not clutter: depth segmentation keeps mugs and clutter. Not self_occlusion: with the
+    // sr300 preset's projector on the image-left, the bent tip lies in the link's own
+    // projector shadow, its node's neighbourhood empties on frame 1, and the paper's
+    // re-initialization slips one component (docs/robustness.md): 44 mm, held below.
+    const std::string n(name);
+    if (n != "clutter" && n != "self_occlusion") {
       EXPECT_LT(s[0].node_err.max, kQuietErrorBand);
+    }
+    if (n == "self_occlusion") {
+      EXPECT_LT(s[0].node_err.max, kSlipBand);
     }
   }
 }

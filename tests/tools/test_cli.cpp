@@ -587,6 +587,7 @@ TEST_F(Cli, FidelityComparesRealAndSimulatedRecordings) {
   std::ofstream(dir / "scene.yaml") << R"(duration_s: 1.0
 camera:
   look_at: {eye_m: [0.0, -0.7, 0.5], target_m: [0.0, 0.0, 0.5], up: [0, 0, 1]}
+noise: {preset: sr300, shadow: {baseline_m: 0.05}}
 base: {waypoints: [{t_s: 0, position_m: [0.0, 0.0, 0.5]}]}
 background:
   wall: {position_m: [0.0, 0.2, 0.5], half_extents_m: [1.5, 0.01, 1.0]}
@@ -609,7 +610,7 @@ background:
     if (row["statistic"] == "projector side (-1 left, +1 right)") {
       side = true;
       EXPECT_EQ(row["real"], -1.0);  // the SR305's projector is image-left
-      EXPECT_EQ(row["sim"], 1.0);    // the scene's, +50 mm: image-right
+      EXPECT_EQ(row["sim"], 1.0);    // the scene sets +50 mm: image-right
     }
     flying = flying || row["statistic"] == "flying rate";
   }

@@ -62,6 +62,7 @@ struct EdgeSide {
 struct DepthStats {
   int frames = 0;
   int window = 15;  ///< the plane-fit window side the statistics used [px]
+  double depth_bin_max_angle = 0;  ///< the angle limit of sigma_by_depth's windows [rad]
   long valid_px = 0;
   double depth_step = 0;  ///< quantization step of the raw values [m]
   std::vector<SigmaBin> sigma_by_depth, sigma_by_angle;
@@ -134,9 +135,9 @@ struct NoiseFit {
 /// Fits the model to `stats`:
 /// - the correlation width whose window_response (at stats.window) matches the measured
 ///   lag-1 correlation, and with it the plane-fit sigma corrected to the noise's own;
-/// - axial a, c (sigma = a + c z^2) by least squares in relative error over the depth
-///   bins (windows under depth_bin_max_angle), then k_theta over the angle bins on what
-///   a + c z^2 leaves;
+/// - axial a, c, k_theta jointly, non-negative, minimizing the largest relative error
+///   over the cells of depth bin x angle bin with 10 windows or more (what a comparison
+///   with the camera sees);
 /// - the projector baseline, signed, when the shadows decide a side;
 /// - the edge band on the side away from the shadow (band_p1, band_p2 given start's
 ///   p_drop); the flying pixels' position and spread (median and interquartile range),

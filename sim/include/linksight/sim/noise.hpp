@@ -1,7 +1,9 @@
 #pragma once
 /// @file The depth camera's noise and artefact model. Every term can be switched off;
 /// `NoiseParams::off()` is an ideal depth camera, `NoiseParams::sr300()` the default.
-/// Values marked "estimate" are not measured on an SR300 yet: calibrate them.
+/// The defaults are the `sr300` preset: `linksight calibrate-noise` on the 11 SR305 frames
+/// in tests/data/sr305-hand (docs/sensor.md, "The sr300 preset", says where each value
+/// comes from); values marked "estimate" are not measured.
 
 #include <numbers>
 #include <string>
@@ -14,17 +16,15 @@ namespace linksight::sim {
 /// replaced by a + c z^2. theta is the incidence angle at the camera.
 struct AxialNoise {
   bool enabled = true;
-  double a = 0.0005;  ///< [m] (estimate: 0.5 mm)
-  double c = 0.0015;  ///< [1/m] (estimate: 1.5 mm/m^2)
-  /// [m^1.5]: Nguyen et al.'s angle coefficient for the Kinect (0.0001 m^1.5), an
-  /// estimate for the SR300.
-  double k_theta = 0.0001;
+  double a = 0.00015;    ///< [m] (fitted: 0.15 mm)
+  double c = 0.0009;     ///< [1/m] (fitted: 0.9 mm/m^2)
+  double k_theta = 0.00031;  ///< [m^1.5] (fitted; Nguyen et al. have 0.0001 for the Kinect)
   /// The angle term is evaluated at min(theta, theta_cap) so it stays finite [rad].
   double theta_cap = 80.0 * std::numbers::pi / 180.0;
   /// Spatial correlation: the unit normal field is a white field blurred by a Gaussian of
   /// this standard deviation [px] and rescaled to unit variance, so neighbours at lag L
   /// correlate by exp(-L^2 / (4 s^2)). 0: white (every pixel its own draw).
-  double correlation_px = 0.0;
+  double correlation_px = 1.6;  ///< (fitted: the camera filters its depth)
   /// sigma_z [m] at depth z [m] and incidence theta [rad].
   [[nodiscard]] double sigma(double z, double theta) const;
 };
@@ -32,14 +32,18 @@ struct AxialNoise {
 /// Sub-pixel jitter of each ray: its pixel coordinates get N(0, sigma_px^2) each.
 struct LateralNoise {
   bool enabled = true;
-  double sigma_px = 0.5;  ///< [px] (estimate)
+  /// [px] (estimate, bounded by the data: with 0.5 px the residual correlation at 1 px
+  /// falls to 0.7, the real frames read 0.83)
+  double sigma_px = 0.1;
 };
 
 /// The projector of a structured-light camera sits at `baseline` along the camera's +x
 /// axis; a surface point it cannot light has no depth.
 struct ProjectorShadow {
   bool enabled = true;
-  double baseline = 0.05;  ///< [m], signed (negative: projector on the camera's -x side)
+  /// [m], signed (negative: projector on the camera's -x side; fitted: the shadows fall
+  /// on the image-right of foreground objects, 63 mm)
+  double baseline = -0.063;
 };
 
 /// Pixels the camera cannot decode.
@@ -53,9 +57,9 @@ struct Dropouts {
   /// Random holes: on average `hole_rate` per frame (Poisson), each a 4-connected blob
   /// grown from a uniformly placed pixel to an area drawn log-normal with this median and
   /// 90th percentile, rounded, in [1, kMaxHolePx] px.
-  double hole_rate = 5.0;
-  double hole_median_px = 2.0;  ///< [px] of area
-  double hole_p90_px = 17.0;    ///< [px] of area, >= hole_median_px
+  double hole_rate = 64.0;      ///< (fitted: 12.4 seen per frame on 19% valid pixels)
+  double hole_median_px = 2.0;  ///< [px] of area (fitted)
+  double hole_p90_px = 19.0;    ///< [px] of area, >= hole_median_px (fitted)
   static constexpr int kMaxHolePx = 1000;
 };
 
@@ -69,12 +73,12 @@ struct Dropouts {
 struct EdgeEffects {
   bool enabled = true;
   double jump = 0.02;              ///< [m]
-  double band_p1 = 0.5;            ///< (estimate)
-  double band_p2 = 0.0;            ///< (estimate)
-  double p_drop = 0.5;             ///< (estimate)
-  double p_flying = 0.2;           ///< (estimate)
-  double flying_position = 0.5;    ///< mean of u
-  double flying_spread = 0.5;      ///< half-width of u's range
+  double band_p1 = 0.69;           ///< (fitted, given p_drop)
+  double band_p2 = 0.96;           ///< (fitted, given p_drop)
+  double p_drop = 0.5;             ///< (estimate: not separable from band_p1, band_p2)
+  double p_flying = 0.10;          ///< (fitted, given p_drop)
+  double flying_position = 0.42;   ///< mean of u (fitted)
+  double flying_spread = 0.46;     ///< half-width of u's range (fitted)
 };
 
 struct NoiseParams {
