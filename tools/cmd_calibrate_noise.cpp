@@ -28,6 +28,7 @@ constexpr double kDeg = 180.0 / 3.14159265358979323846;
 struct CalibrateOptions {
   std::string input, intrinsics, out, report;
   bool quiet = false;
+  bool no_shape_correction = false;
 };
 
 std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames) {
@@ -90,18 +91,27 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
           {"hole_sizes_px", s.hole_sizes}};
 }
 
-void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFit& fit) {
+void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFit& fit,
+                  const sim::DepthStats* shape) {
   os << std::fixed;
   os << s.frames << " frames, " << s.valid_px << " valid pixels, " << s.windows
      << " flat 15x15 windows; depth step " << std::setprecision(3) << s.depth_step * 1e3
-     << " mm\n\nplane-fit sigma by depth (incidence < 30 deg; the model at each bin's windows):\n";
+     << " mm\n\nplane-fit sigma by depth (incidence < 30 deg); shape: the same on the frames' "
+        "surfaces re-rendered without noise; the fitted model at each bin's windows, shape added:\n";
   // The fitted model as the plane fit would read it (its correlation lowers the reading).
   const double read = std::sqrt(sim::window_response(fit.params.axial.correlation_px).variance_factor);
-  // The model as read: its median over the bin's own windows (their depths and angles).
+  // The model as read: its median over the bin's own windows (their depths and angles),
+  // with the surfaces' shape added in quadrature when it was measured.
   auto bins = [&](const std::vector<sim::SigmaBin>& v, double unit, const char* what) {
     const bool by_depth = unit == 1.0;
-    for (const auto& b : v) {
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      const sim::SigmaBin& b = v[k];
       if (b.windows == 0) continue;
+      double q = 0;
+      if (shape != nullptr) {
+        const auto& sb = by_depth ? shape->sigma_by_depth : shape->sigma_by_angle;
+        if (k < sb.size() && sb[k].windows >= 10) q = sb[k].sigma;
+      }
       std::vector<double> model;
       for (const auto& w : s.samples) {
         const double x = by_depth ? w.z : w.angle;
@@ -109,10 +119,11 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
         model.push_back(read * fit.params.axial.sigma(w.z, w.angle));
       }
       std::sort(model.begin(), model.end());
+      const double mm = model.empty() ? 0.0 : model[model.size() / 2];
       os << "  " << what << " [" << std::setprecision(unit > 1 ? 0 : 2) << b.lo * unit << ", "
          << b.hi * unit << ")  windows " << std::setw(5) << b.windows << "  sigma_mm "
-         << std::setprecision(2) << b.sigma * 1e3 << "  fitted_model_mm "
-         << (model.empty() ? 0.0 : model[model.size() / 2]) * 1e3 << "\n";
+         << std::setprecision(2) << b.sigma * 1e3 << "  shape_mm " << q * 1e3
+         << "  model_and_shape_mm " << std::sqrt(mm * mm + q * q) * 1e3 << "\n";
     }
   };
   bins(s.sigma_by_depth, 1.0, "z_m");
@@ -158,7 +169,20 @@ int run_calibrate(const CalibrateOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw io::InputError(o.input + ": " + e.what());
   }
-  const sim::NoiseFit fit = sim::fit_noise(stats, sim::NoiseParams::sr300());
+  // What the surfaces' own shape puts into the plane fit: the recording's geometry
+  // re-rendered without noise (quantization kept).
+  sim::DepthStats shape;
+  if (!o.no_shape_correction) {
+    sim::NoiseParams quiet = sim::NoiseParams::off();
+    quiet.quantize = true;
+    try {
+      shape = sim::depth_stats(sim::rerender_surfaces(frames, K, quiet, 1), K);
+    } catch (const std::invalid_argument& e) {
+      throw io::InputError(o.input + ": re-rendering its surfaces: " + e.what());
+    }
+  }
+  const sim::DepthStats* shape_p = o.no_shape_correction ? nullptr : &shape;
+  const sim::NoiseFit fit = sim::fit_noise(stats, sim::NoiseParams::sr300(), shape_p);
   io::StagedFiles out;
   out.open(o.out) << noise_yaml(fit, o.input, stats.frames);
   if (!o.report.empty()) {
@@ -166,13 +190,13 @@ int run_calibrate(const CalibrateOptions& o) {
     fs::create_directories(o.report, ec);
     if (ec) throw io::InputError(o.report + ": cannot create report directory: " + ec.message());
     std::ostringstream text;
-    print_report(text, stats, fit);
+    print_report(text, stats, fit, shape_p);
     out.open(fs::path(o.report) / "report.txt") << text.str();
     out.open(fs::path(o.report) / "stats.json") << stats_json(stats).dump(2) << "\n";
   }
   out.commit();
   if (!o.quiet) {
-    print_report(std::cout, stats, fit);
+    print_report(std::cout, stats, fit, shape_p);
     std::cout << "\nwrote " << o.out << " (a noise: block for a scene file)";
     if (!o.report.empty()) std::cout << ", " << o.report << "/report.txt, stats.json";
     std::cout << "\n";
@@ -189,6 +213,9 @@ Runner add_calibrate_noise(CLI::App& app) {
   app.add_option("--intrinsics", o->intrinsics, "intrinsics.json of the camera")->required();
   app.add_option("--out", o->out, "the fitted noise: block (YAML)")->required();
   app.add_option("--report", o->report, "directory for report.txt and stats.json");
+  app.add_flag("--no-shape-correction", o->no_shape_correction,
+               "fit sigma as measured, without subtracting what the surfaces' own shape puts "
+               "into the plane fit (estimated by re-rendering them without noise)");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
   return [o] { return run_calibrate(*o); };
 }

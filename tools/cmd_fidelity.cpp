@@ -17,6 +17,7 @@
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
 #include "linksight/sim/depth_stats.hpp"
+#include "linksight/sim/scene.hpp"
 
 namespace linksight::cli {
 namespace fs = std::filesystem;
@@ -25,12 +26,15 @@ namespace {
 struct FidelityOptions {
   std::string real, sim, out;
   std::string real_intrinsics, sim_intrinsics;
+  bool rerender = false;
+  std::string noise_scene;  // --rerender: the noise block of this scene (default: sr300)
   bool no_figures = false, quiet = false, force = false;
 };
 
 // A recording: DIR/depth (as `linksight render` writes), DIR/frames, or DIR itself; the
 // intrinsics beside the frames' folder unless given.
-sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, const char* role) {
+sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, const char* role,
+                        const sim::NoiseParams* rerender = nullptr) {
   try {
     fs::path frames = dir, k = intrinsics;
     std::error_code ec;
@@ -42,9 +46,12 @@ sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, c
     }
     if (k.empty()) k = fs::path(dir) / "intrinsics.json";
     const io::Intrinsics K = io::read_intrinsics(k);
-    const std::vector<io::DepthImage> images =
+    std::vector<io::DepthImage> images =
         read_depth_frames(frames.string(), K, k.string(), "fidelity");
     try {
+      // The recording's own surfaces through the simulated camera: same geometry, so
+      // what differs is the sensor model.
+      if (rerender != nullptr) images = sim::rerender_surfaces(images, K, *rerender, 1);
       return sim::depth_stats(images, K);
     } catch (const std::invalid_argument& e) {
       throw io::InputError(dir + ": " + e.what());
@@ -128,7 +135,13 @@ nlohmann::json series(const sim::DepthStats& s) {
 int run_fidelity(const FidelityOptions& o) {
   io::StagedDir out(o.out, o.force);  // refuses an existing --out before any work
   const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real");
-  const sim::DepthStats simulated = measure(o.sim, o.sim_intrinsics, "sim");
+  if (o.rerender == !o.sim.empty())
+    throw io::InputError("fidelity: give either --sim DIR or --rerender");
+  sim::NoiseParams noise = sim::NoiseParams::sr300();
+  if (!o.noise_scene.empty()) noise = sim::load_scene(o.noise_scene).noise;
+  const sim::DepthStats simulated =
+      o.rerender ? measure(o.real, o.real_intrinsics, "rerender", &noise)
+                 : measure(o.sim, o.sim_intrinsics, "sim");
   const std::vector<Row> table = rows(real, simulated);
   std::ostringstream text;
   text << std::left << std::setw(44) << "statistic" << std::right << std::setw(10) << "real"
@@ -142,7 +155,7 @@ int run_fidelity(const FidelityOptions& o) {
                       {"sim", json_number(r.sim)}, {"ratio", json_number(ratio)}});
   }
   io::write_file_atomic(out.path() / "fidelity.txt", [&](std::ostream& f) { f << text.str(); });
-  const nlohmann::json j = {{"real", o.real}, {"sim", o.sim}, {"rows", j_rows},
+  const nlohmann::json j = {{"real", o.real}, {"sim", o.rerender ? "rerender" : o.sim}, {"rows", j_rows},
                             {"series", {{"real", series(real)}, {"sim", series(simulated)}}}};
   io::write_file_atomic(out.path() / "fidelity.json", [&](std::ostream& f) { f << j.dump(1) << "\n"; });
   // Figures into the staging directory, so the output appears whole; a failed plot is a
@@ -166,7 +179,12 @@ Runner add_fidelity(CLI::App& app) {
   auto o = std::make_shared<FidelityOptions>();
   app.add_option("--real", o->real, "real recording: depth PNGs in DIR, DIR/frames or DIR/depth")
       ->required();
-  app.add_option("--sim", o->sim, "simulated recording (linksight render --out DIR)")->required();
+  app.add_option("--sim", o->sim, "simulated recording (linksight render --out DIR)");
+  app.add_flag("--rerender", o->rerender,
+               "instead of --sim: the real recording's own surfaces (rebuilt from its depth, "
+               "noise smoothed away) rendered through the simulated camera");
+  app.add_option("--noise-scene", o->noise_scene,
+                 "--rerender: use this scene file's noise block (default: the sr300 preset)");
   app.add_option("--real-intrinsics", o->real_intrinsics, "default: DIR/intrinsics.json");
   app.add_option("--sim-intrinsics", o->sim_intrinsics, "default: DIR/intrinsics.json");
   app.add_option("--out", o->out, "output directory (fidelity.txt, fidelity.json, figures/)")

@@ -1,5 +1,7 @@
 #include "linksight/sim/depth_stats.hpp"
 
+#include "linksight/sim/sensor.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -503,7 +505,29 @@ WindowResponse window_response(double correlation_px, int window) {
   return r;
 }
 
-NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
+std::vector<io::DepthImage> rerender_surfaces(const std::vector<io::DepthImage>& frames,
+                                              const io::Intrinsics& K, const NoiseParams& noise,
+                                              std::uint64_t seed, const DepthSurfaceParams& surface) {
+  std::vector<io::DepthImage> out;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    BackgroundObject b;
+    b.shape.kind = Shape::Kind::mesh;
+    b.shape.mesh_data = std::make_shared<const TriangleMesh>(depth_surface_mesh(frames[f], K, surface));
+    SensorParams p;
+    p.camera.intrinsics = K;
+    p.camera.X_WC = Eigen::Isometry3d::Identity();
+    p.noise = noise;
+    const ComponentGeometry g;
+    Sensor sensor(p, g, {}, {b});
+    // The link out of the way, behind the camera.
+    std::vector<Eigen::Isometry3d> X(static_cast<std::size_t>(g.count), Eigen::Isometry3d::Identity());
+    for (Eigen::Isometry3d& x : X) x.translation() = Eigen::Vector3d(0, 0, -5);
+    out.push_back(sensor.render(X, 0.0, seed, f).depth);
+  }
+  return out;
+}
+
+NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthStats* shape) {
   const int window = s.window;
   NoiseFit fit;
   fit.params = start;
@@ -557,8 +581,11 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
     double y = 0;  // measured median sigma, unbiased [m]
   };
   std::vector<Bin> cells;
-  for (const bool by_depth : {true, false})
-    for (const SigmaBin& b : by_depth ? s.sigma_by_depth : s.sigma_by_angle) {
+  int corrected = 0, uncorrected = 0;
+  for (const bool by_depth : {true, false}) {
+    const std::vector<SigmaBin>& bins = by_depth ? s.sigma_by_depth : s.sigma_by_angle;
+    for (std::size_t k = 0; k < bins.size(); ++k) {
+      const SigmaBin& b = bins[k];
       Bin bin;
       std::vector<double> ys;
       for (const DepthStats::Window& w : s.samples) {
@@ -566,12 +593,29 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start) {
         if (x < b.lo || x >= b.hi || (by_depth && w.angle >= s.depth_bin_max_angle)) continue;
         bin.z2.push_back(w.z * w.z);
         bin.g.push_back(g_of(w.z, w.angle));
-        ys.push_back(w.sigma * unbias);
+        ys.push_back(w.sigma);
       }
       if (ys.size() < 10) continue;
-      bin.y = median(ys);
+      double m = median(ys);
+      if (shape != nullptr) {
+        const std::vector<SigmaBin>& q = by_depth ? shape->sigma_by_depth : shape->sigma_by_angle;
+        if (k < q.size() && q[k].windows >= 10 && std::abs(q[k].lo - b.lo) < 1e-9) {
+          // Noise and shape add in quadrature; a bin the shape explains keeps a tenth.
+          m = std::sqrt(std::max(m * m - q[k].sigma * q[k].sigma, 0.01 * m * m));
+          ++corrected;
+        } else {
+          ++uncorrected;
+        }
+      }
+      bin.y = m * unbias;
       cells.push_back(std::move(bin));
     }
+  }
+  if (shape != nullptr) {
+    fit.notes.push_back("sigma corrected for the surfaces' own shape in " + std::to_string(corrected) +
+                        " bins (" + std::to_string(uncorrected) +
+                        " without 10 windows of the re-rendered surfaces)");
+  }
   // Minimax in relative error, non-negative: the largest |model / measured - 1| over the
   // bins is what a comparison of a simulation with the camera (linksight fidelity) sees,
   // so that is what the fit keeps small. A coarse grid, then a pattern search around its

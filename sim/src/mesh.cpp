@@ -223,4 +223,109 @@ TriangleMesh load_mesh(const std::filesystem::path& path) {
   return mesh;
 }
 
+void DepthSurfaceParams::validate() const {
+  if (max_gap_px < 0)
+    throw std::invalid_argument("depth surface max_gap_px = " + std::to_string(max_gap_px) +
+                                ": must be >= 0");
+  if (!(jump > 0))
+    throw std::invalid_argument("depth surface jump = " + std::to_string(jump) + ": must be > 0 m");
+  if (!(smoothing_px >= 0 && smoothing_px <= 20))
+    throw std::invalid_argument("depth surface smoothing_px = " + std::to_string(smoothing_px) +
+                                ": must be in [0, 20]");
+}
+
+TriangleMesh depth_surface_mesh(const io::DepthImage& depth, const io::Intrinsics& K,
+                                const DepthSurfaceParams& p) {
+  p.validate();
+  const int W = depth.width, H = depth.height;
+  if (W != K.width || H != K.height)
+    throw std::invalid_argument("depth surface: the image is " + std::to_string(W) + "x" +
+                                std::to_string(H) + ", the intrinsics say " +
+                                std::to_string(K.width) + "x" + std::to_string(K.height));
+  const auto idx = [W](int u, int v) { return static_cast<std::size_t>(v) * W + u; };
+  std::vector<double> z(depth.data.size(), 0.0);
+  bool any = false;
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    z[i] = depth.data[i] * K.depth_scale;
+    any = any || depth.data[i] != 0;
+  }
+  if (!any) throw std::invalid_argument("depth surface: no valid pixel");
+  // Gaps along rows, then what is left along columns; both read the original image.
+  std::vector<double> filled = z;
+  auto fill_line = [&](int count, int length, auto at) {
+    for (int l = 0; l < count; ++l) {
+      int last = -1;  // the last valid pixel before a gap
+      for (int i = 0; i < length; ++i) {
+        if (z[at(l, i)] <= 0) continue;
+        const int gap = i - last - 1;
+        if (last >= 0 && gap > 0 && gap <= p.max_gap_px) {
+          const double za = z[at(l, last)], zb = z[at(l, i)];
+          for (int k = last + 1; k < i; ++k) {
+            if (filled[at(l, k)] > 0) continue;
+            const double f = static_cast<double>(k - last) / (i - last);
+            filled[at(l, k)] = std::abs(zb - za) > p.jump ? std::max(za, zb) : za + f * (zb - za);
+          }
+        }
+        last = i;
+      }
+    }
+  };
+  fill_line(H, W, [&](int v, int u) { return idx(u, v); });
+  fill_line(W, H, [&](int u, int v) { return idx(u, v); });
+  // Edge-preserving smoothing: a Gaussian over the neighbours on the same surface (within
+  // 3 jump of the centre), along rows then along columns. A Gaussian leaves a quadratic
+  // surface as it is up to a constant, so the curvature a plane fit sees survives; the
+  // camera's noise does not.
+  std::vector<double> smooth = filled;
+  if (p.smoothing_px > 0) {
+    const int R = static_cast<int>(std::ceil(3 * p.smoothing_px));
+    std::vector<double> g(static_cast<std::size_t>(R) + 1);
+    for (int i = 0; i <= R; ++i) g[i] = std::exp(-0.5 * i * i / (p.smoothing_px * p.smoothing_px));
+    // Wider than `jump`: a steep surface changes by more than `jump` across the kernel, and
+    // cutting it there would keep one side only and bend the slope.
+    const double gate = 3 * p.jump;
+    auto pass = [&](const std::vector<double>& src, std::vector<double>& dst, bool rows) {
+      for (int v = 0; v < H; ++v)
+        for (int u = 0; u < W; ++u) {
+          const double z0 = src[idx(u, v)];
+          if (z0 <= 0) continue;
+          double sw = 0, sz = 0;
+          for (int d = -R; d <= R; ++d) {
+            const int uu = rows ? u + d : u, vv = rows ? v : v + d;
+            if (uu < 0 || uu >= W || vv < 0 || vv >= H) continue;
+            const double zq = src[idx(uu, vv)];
+            if (zq <= 0 || std::abs(zq - z0) > gate) continue;
+            sw += g[std::abs(d)];
+            sz += g[std::abs(d)] * zq;
+          }
+          dst[idx(u, v)] = sz / sw;
+        }
+    };
+    std::vector<double> tmp = filled;
+    pass(filled, tmp, true);
+    pass(tmp, smooth, false);
+  }
+  TriangleMesh mesh;
+  std::vector<int> vertex(smooth.size(), -1);
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      if (smooth[idx(u, v)] <= 0) continue;
+      vertex[idx(u, v)] = static_cast<int>(mesh.vertices.size());
+      mesh.vertices.push_back(K.deproject(u, v, smooth[idx(u, v)]).cast<float>());
+    }
+  auto close = [&](std::size_t a, std::size_t b, std::size_t c) {
+    const double lo = std::min({smooth[a], smooth[b], smooth[c]});
+    const double hi = std::max({smooth[a], smooth[b], smooth[c]});
+    return lo > 0 && hi - lo <= p.jump;
+  };
+  for (int v = 0; v + 1 < H; ++v)
+    for (int u = 0; u + 1 < W; ++u) {
+      const std::size_t a = idx(u, v), b = idx(u + 1, v), c = idx(u, v + 1), d = idx(u + 1, v + 1);
+      // Counter-clockwise seen from the camera (x right, y down, z forward).
+      if (close(a, c, b)) mesh.triangles.emplace_back(vertex[a], vertex[c], vertex[b]);
+      if (close(b, c, d)) mesh.triangles.emplace_back(vertex[b], vertex[c], vertex[d]);
+    }
+  return mesh;
+}
+
 }  // namespace linksight::sim

@@ -276,7 +276,8 @@ void Shape::validate() const {
         throw std::invalid_argument("shape radius = " + std::to_string(radius) + ": must be > 0");
       break;
     case Kind::mesh:
-      if (mesh.empty()) throw std::invalid_argument("shape mesh: no file given");
+      if (mesh.empty() && (!mesh_data || mesh_data->triangles.empty()))
+        throw std::invalid_argument("shape mesh: no file given");
       if (!(scale > 0) || !std::isfinite(scale))
         throw std::invalid_argument("shape scale = " + std::to_string(scale) + ": must be > 0");
       break;
@@ -293,7 +294,7 @@ TriangleMesh Shape::triangles() const {
     case Kind::sphere:
       return sphere_mesh(radius);
     case Kind::mesh: {
-      TriangleMesh m = load_mesh(mesh);  // names a missing or bad file
+      TriangleMesh m = mesh.empty() ? *mesh_data : load_mesh(mesh);  // names a bad file
       for (Eigen::Vector3f& v : m.vertices) v *= static_cast<float>(scale);
       return m;
     }

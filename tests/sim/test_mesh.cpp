@@ -228,3 +228,73 @@ TEST(LoadMesh, GarbageFileThrowsInputErrorNamingTheFile) {
 
 }  // namespace
 }  // namespace linksight::sim
+
+namespace linksight::sim {
+namespace {
+
+// depth_surface_mesh: a plane at 0.6 m with a near block at 0.5 m in front of it, the
+// block's right edge followed by a 6-px invalid band and a 2-px hole in the plane. The
+// band is filled with the far (plane) depth, the hole linearly; no triangle spans the
+// discontinuity; every vertex lies on its surface (smoothing keeps planes).
+TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
+  io::Intrinsics K;
+  K.width = 64;
+  K.height = 48;
+  K.fx = K.fy = 60;
+  K.cx = 32;
+  K.cy = 24;
+  K.depth_scale = 0.000125;
+  io::DepthImage d;
+  d.width = K.width;
+  d.height = K.height;
+  d.data.assign(static_cast<std::size_t>(K.width) * K.height, 4800);  // 0.6 m
+  for (int v = 10; v < 30; ++v)
+    for (int u = 10; u < 40; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * K.width + u;
+      if (u < 30) d.data[i] = 4000;  // 0.5 m
+      else if (u < 36) d.data[i] = 0;  // the band right of the block
+    }
+  d.data[static_cast<std::size_t>(40) * K.width + 50] = 0;  // a hole
+  d.data[static_cast<std::size_t>(40) * K.width + 51] = 0;
+  const TriangleMesh m = depth_surface_mesh(d, K);
+  EXPECT_EQ(m.vertices.size(), d.data.size()) << "every pixel present after filling";
+  for (const Eigen::Vector3f& p : m.vertices) {
+    const bool near = std::abs(p.z() - 0.5F) < 1e-4F, far = std::abs(p.z() - 0.6F) < 1e-4F;
+    EXPECT_TRUE(near || far) << p.transpose();
+  }
+  int near = 0;
+  for (const Eigen::Vector3i& t : m.triangles) {
+    float lo = 1, hi = 0;
+    for (int k = 0; k < 3; ++k) {
+      lo = std::min(lo, m.vertices[static_cast<std::size_t>(t[k])].z());
+      hi = std::max(hi, m.vertices[static_cast<std::size_t>(t[k])].z());
+    }
+    EXPECT_LT(hi - lo, 0.02F) << "a triangle across the discontinuity";
+    near += hi < 0.55F;
+  }
+  EXPECT_EQ(near, 2 * 19 * 19) << "the block's 20 x 20 pixels make 19 x 19 quads";
+  // Every triangle of the 2x2 blocks (split a-c-b, b-c-d) with its corners on one side of
+  // the block's outline, the band and the hole included.
+  auto in_block = [](int u, int v) { return u >= 10 && u < 30 && v >= 10 && v < 30; };
+  std::size_t expected = 0;
+  for (int v = 0; v + 1 < K.height; ++v)
+    for (int u = 0; u + 1 < K.width; ++u) {
+      const bool a = in_block(u, v), b = in_block(u + 1, v), c = in_block(u, v + 1),
+                 dd = in_block(u + 1, v + 1);
+      expected += (a == c && c == b) + (b == c && c == dd);
+    }
+  EXPECT_EQ(m.triangles.size(), expected);
+  d.data.assign(d.data.size(), 0);
+  EXPECT_THROW((void)depth_surface_mesh(d, K), std::invalid_argument);
+  DepthSurfaceParams bad;
+  bad.smoothing_px = -1;
+  try {
+    (void)depth_surface_mesh(d, K, bad);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("smoothing_px"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace linksight::sim

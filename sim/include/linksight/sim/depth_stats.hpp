@@ -8,10 +8,13 @@
 /// noise model to and what `fidelity` compares. Nothing here knows the scene.
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/intrinsics.hpp"
+#include "linksight/sim/mesh.hpp"
+#include "linksight/sim/noise.hpp"
 
 namespace linksight::sim {
 
@@ -106,6 +109,15 @@ struct DepthStats {
                                      const io::Intrinsics& intrinsics,
                                      const DepthStatsParams& params = {});
 
+/// Each frame's own surface (depth_surface_mesh) rendered through the simulated camera at
+/// `intrinsics` with `noise`, draws from (seed, frame index): the recording's geometry
+/// with the sensor model's artefacts instead of the camera's. With NoiseParams::off()
+/// (quantization kept) it measures what the surfaces' shape alone puts into the plane-fit
+/// sigma. Throws as depth_surface_mesh does.
+[[nodiscard]] std::vector<io::DepthImage> rerender_surfaces(
+    const std::vector<io::DepthImage>& frames, const io::Intrinsics& intrinsics,
+    const NoiseParams& noise, std::uint64_t seed, const DepthSurfaceParams& surface = {});
+
 }  // namespace linksight::sim
 
 #include <string>
@@ -144,7 +156,12 @@ struct NoiseFit {
 ///   and p_flying from the flying pixels per discontinuity given p_drop;
 /// - the hole rate (holes per frame over the valid fraction of the image: a hole only
 ///   shows on a surface) and the median and 90th percentile of hole sizes.
+/// With `shape` (the statistics of the recording's surfaces re-rendered without noise,
+/// rerender_surfaces), each bin's sigma is first corrected for what the surfaces' shape
+/// puts into a plane fit: sqrt(sigma^2 - shape^2), since the camera's noise and the
+/// shape's residual add in quadrature.
 /// Every term kept from `start`, and every measurement the model cannot follow, gets a note.
-[[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start);
+[[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start,
+                                 const DepthStats* shape = nullptr);
 
 }  // namespace linksight::sim

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "linksight/io/depth_png.hpp"
+#include "linksight/io/intrinsics.hpp"
 #include "linksight/tracker/geometry.hpp"
 
 namespace linksight::sim {
@@ -43,6 +45,31 @@ void append(TriangleMesh& mesh, const TriangleMesh& part,
 /// A mug for clutter: a cylinder of radius 4 cm, 10 cm tall, standing on z = 0, with a
 /// handle on +x (meshes/mug.obj).
 [[nodiscard]] TriangleMesh mug_mesh();
+
+/// How depth_surface_mesh turns a depth image back into the surface it saw.
+struct DepthSurfaceParams {
+  /// Invalid runs of at most this many pixels along a row or column, between valid pixels,
+  /// are filled: across a discontinuity (the ends differ by more than `jump`) with the far
+  /// side's depth, since the far surface goes on behind the edge where the camera left its
+  /// band; otherwise (a hole) linearly.
+  int max_gap_px = 40;
+  double jump = 0.02;        ///< [m]
+  /// The depth is smoothed by a Gaussian of this sigma [px] over neighbours within `jump`
+  /// (edges stay sharp), so that the camera's own noise is not baked into the surface; a
+  /// Gaussian keeps a quadratic surface, so the curvature a 15x15 plane fit sees stays.
+  double smoothing_px = 8.0;
+  void validate() const;  ///< throws std::invalid_argument naming the field
+};
+
+/// The surface a depth image (raw units, 0 = invalid) saw, in the camera frame C [m]: one
+/// vertex per valid or filled pixel, deprojected with `intrinsics`, and two triangles per
+/// 2x2 block whose corners are all present and within `jump` of each other (none across a
+/// discontinuity). For re-rendering a real recording's geometry through the simulated
+/// camera (`linksight fidelity`): same scene, so what differs is the sensor model. Throws
+/// std::invalid_argument for a size that differs from the intrinsics, or no valid pixel.
+[[nodiscard]] TriangleMesh depth_surface_mesh(const io::DepthImage& depth,
+                                              const io::Intrinsics& intrinsics,
+                                              const DepthSurfaceParams& params = {});
 
 /// Writes `mesh` as Wavefront OBJ (v / f lines, 1-based), atomically. Each line of
 /// `comment` (if any) becomes a leading "# " line. Throws linksight::io::InputError

@@ -16,7 +16,7 @@ namespace linksight::sim {
 /// replaced by a + c z^2. theta is the incidence angle at the camera.
 struct AxialNoise {
   bool enabled = true;
-  double a = 0.00015;    ///< [m] (fitted: 0.15 mm)
+  double a = 0.000054;   ///< [m] (fitted: 0.054 mm)
   double c = 0.0009;     ///< [1/m] (fitted: 0.9 mm/m^2)
   double k_theta = 0.00031;  ///< [m^1.5] (fitted; Nguyen et al. have 0.0001 for the Kinect)
   /// The angle term is evaluated at min(theta, theta_cap) so it stays finite [rad].

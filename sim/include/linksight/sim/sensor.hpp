@@ -32,6 +32,8 @@ struct Shape {
   double radius = 0.05;                  ///< cylinder (around z) and sphere [m]
   double half_length = 0.05;             ///< cylinder, along z [m]
   std::filesystem::path mesh;            ///< mesh: any file assimp reads
+  /// mesh: triangles given in memory instead of a file (when `mesh` is empty) [m]
+  std::shared_ptr<const TriangleMesh> mesh_data;
   double scale = 1.0;                    ///< mesh: file units to metres
   void validate() const;                 ///< throws std::invalid_argument naming the field
   /// The triangles; throws linksight::io::InputError naming a missing or bad mesh file.
