@@ -12,7 +12,9 @@
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
 #include "linksight/io/intrinsics.hpp"
+#include "linksight/sim/depth_stats.hpp"
 #include "linksight/tracker/tracker.hpp"
+#include <nlohmann/json.hpp>
 
 namespace linksight::cli {
 
@@ -50,6 +52,24 @@ inline std::vector<io::DepthImage> read_depth_frames(const std::string& frames,
                            std::to_string(K.height) + ")");
   }
   return images;
+}
+
+/// A recording's statistics as tools/plot_fidelity.py draws them (lengths in mm, angles in
+/// degrees, as the keys say).
+inline nlohmann::json stats_series(const sim::DepthStats& s) {
+  auto bins = [](const std::vector<sim::SigmaBin>& v, double unit) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const auto& b : v)
+      if (b.windows > 0)
+        a.push_back({{"centre", b.centre * unit}, {"sigma_mm", b.sigma * 1e3}, {"windows", b.windows}});
+    return a;
+  };
+  const sim::EdgeSide& shadow = s.projector_side < 0 ? s.near_left : s.near_right;
+  return {{"sigma_by_depth", bins(s.sigma_by_depth, 1.0)},
+          {"sigma_by_angle", bins(s.sigma_by_angle, 180.0 / 3.14159265358979323846)},
+          {"shadow_gap_px", shadow.gap_px},
+          {"shadow_width_px", shadow.width_px},
+          {"hole_sizes_px", s.hole_sizes}};
 }
 
 /// `env`'s value if set, else the script in the source tree.

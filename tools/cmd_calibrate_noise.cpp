@@ -29,6 +29,7 @@ struct CalibrateOptions {
   std::string input, intrinsics, out, report;
   bool quiet = false;
   bool no_shape_correction = false;
+  bool no_figures = false;
 };
 
 std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames) {
@@ -91,6 +92,46 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
           {"hole_sizes_px", s.hole_sizes}};
 }
 
+// Bin k of sigma by depth (or by angle): what the surfaces' shape reads there (0 when not
+// measured), and the fitted model as the plane fit reads it (its correlation lowers the
+// reading; its median over the bin's own windows) with that shape added in quadrature [m].
+std::pair<double, double> model_read(const sim::DepthStats& s, const sim::NoiseFit& fit,
+                                     const sim::DepthStats* shape, bool by_depth, std::size_t k) {
+  const double read = std::sqrt(sim::window_response(fit.params.axial.correlation_px).variance_factor);
+  const sim::SigmaBin& b = (by_depth ? s.sigma_by_depth : s.sigma_by_angle)[k];
+  double q = 0;
+  if (shape != nullptr) {
+    const auto& sb = by_depth ? shape->sigma_by_depth : shape->sigma_by_angle;
+    if (k < sb.size() && sb[k].windows >= 10) q = sb[k].sigma;
+  }
+  std::vector<double> model;
+  for (const auto& w : s.samples) {
+    const double x = by_depth ? w.z : w.angle;
+    if (x < b.lo || x >= b.hi || (by_depth && w.angle >= s.depth_bin_max_angle)) continue;
+    model.push_back(read * fit.params.axial.sigma(w.z, w.angle));
+  }
+  std::sort(model.begin(), model.end());
+  const double m = model.empty() ? 0.0 : model[model.size() / 2];
+  return {q, std::sqrt(m * m + q * q)};
+}
+
+// The recording and the fitted model (with the shape) as tools/plot_fidelity.py draws them.
+nlohmann::json figure_series(const sim::DepthStats& s, const sim::NoiseFit& fit,
+                             const sim::DepthStats* shape) {
+  nlohmann::json model;
+  for (const bool by_depth : {true, false}) {
+    const auto& v = by_depth ? s.sigma_by_depth : s.sigma_by_angle;
+    nlohmann::json a = nlohmann::json::array();
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      if (v[k].windows == 0) continue;
+      a.push_back({{"centre", v[k].centre * (by_depth ? 1.0 : kDeg)},
+                   {"sigma_mm", model_read(s, fit, shape, by_depth, k).second * 1e3}});
+    }
+    model[by_depth ? "sigma_by_depth" : "sigma_by_angle"] = a;
+  }
+  return {{"series", {{"recording", stats_series(s)}, {"fitted model + surface shape", model}}}};
+}
+
 void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFit& fit,
                   const sim::DepthStats* shape) {
   os << std::fixed;
@@ -98,32 +139,16 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
      << " flat 15x15 windows; depth step " << std::setprecision(3) << s.depth_step * 1e3
      << " mm\n\nplane-fit sigma by depth (incidence < 30 deg); shape: the same on the frames' "
         "surfaces re-rendered without noise; the fitted model at each bin's windows, shape added:\n";
-  // The fitted model as the plane fit would read it (its correlation lowers the reading).
-  const double read = std::sqrt(sim::window_response(fit.params.axial.correlation_px).variance_factor);
-  // The model as read: its median over the bin's own windows (their depths and angles),
-  // with the surfaces' shape added in quadrature when it was measured.
   auto bins = [&](const std::vector<sim::SigmaBin>& v, double unit, const char* what) {
     const bool by_depth = unit == 1.0;
     for (std::size_t k = 0; k < v.size(); ++k) {
       const sim::SigmaBin& b = v[k];
       if (b.windows == 0) continue;
-      double q = 0;
-      if (shape != nullptr) {
-        const auto& sb = by_depth ? shape->sigma_by_depth : shape->sigma_by_angle;
-        if (k < sb.size() && sb[k].windows >= 10) q = sb[k].sigma;
-      }
-      std::vector<double> model;
-      for (const auto& w : s.samples) {
-        const double x = by_depth ? w.z : w.angle;
-        if (x < b.lo || x >= b.hi || (by_depth && w.angle >= sim::DepthStatsParams{}.depth_bin_max_angle)) continue;
-        model.push_back(read * fit.params.axial.sigma(w.z, w.angle));
-      }
-      std::sort(model.begin(), model.end());
-      const double mm = model.empty() ? 0.0 : model[model.size() / 2];
+      const auto [q, both] = model_read(s, fit, shape, by_depth, k);
       os << "  " << what << " [" << std::setprecision(unit > 1 ? 0 : 2) << b.lo * unit << ", "
          << b.hi * unit << ")  windows " << std::setw(5) << b.windows << "  sigma_mm "
          << std::setprecision(2) << b.sigma * 1e3 << "  shape_mm " << q * 1e3
-         << "  model_and_shape_mm " << std::sqrt(mm * mm + q * q) * 1e3 << "\n";
+         << "  model_and_shape_mm " << both * 1e3 << "\n";
     }
   };
   bins(s.sigma_by_depth, 1.0, "z_m");
@@ -193,12 +218,22 @@ int run_calibrate(const CalibrateOptions& o) {
     print_report(text, stats, fit, shape_p);
     out.open(fs::path(o.report) / "report.txt") << text.str();
     out.open(fs::path(o.report) / "stats.json") << stats_json(stats).dump(2) << "\n";
+    out.open(fs::path(o.report) / "calibration.json")
+        << figure_series(stats, fit, shape_p).dump(1) << "\n";
   }
   out.commit();
+  // Figures last, each written whole by the script; a failed plot is a warning.
+  std::string warn;
+  if (!o.report.empty() && !o.no_figures)
+    warn = run_plot_script(
+        script_path("LINKSIGHT_FIDELITY_PLOT_SCRIPT", LINKSIGHT_FIDELITY_PLOT_SCRIPT), o.report,
+        o.quiet);
+  if (!warn.empty()) std::cerr << "linksight calibrate-noise: " << warn << "\n";
   if (!o.quiet) {
     print_report(std::cout, stats, fit, shape_p);
     std::cout << "\nwrote " << o.out << " (a noise: block for a scene file)";
-    if (!o.report.empty()) std::cout << ", " << o.report << "/report.txt, stats.json";
+    if (!o.report.empty())
+      std::cout << ", " << o.report << "/report.txt, stats.json, calibration.json, figures/";
     std::cout << "\n";
   }
   return kExitOk;
@@ -216,6 +251,7 @@ Runner add_calibrate_noise(CLI::App& app) {
   app.add_flag("--no-shape-correction", o->no_shape_correction,
                "fit sigma as measured, without subtracting what the surfaces' own shape puts "
                "into the plane fit (estimated by re-rendering them without noise)");
+  app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
   return [o] { return run_calibrate(*o); };
 }

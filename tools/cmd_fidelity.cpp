@@ -116,22 +116,6 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
   return out;
 }
 
-nlohmann::json series(const sim::DepthStats& s) {
-  auto bins = [](const std::vector<sim::SigmaBin>& v, double unit) {
-    nlohmann::json a = nlohmann::json::array();
-    for (const auto& b : v)
-      if (b.windows > 0)
-        a.push_back({{"centre", b.centre * unit}, {"sigma_mm", b.sigma * 1e3}, {"windows", b.windows}});
-    return a;
-  };
-  const sim::EdgeSide& shadow = s.projector_side < 0 ? s.near_left : s.near_right;
-  return {{"sigma_by_depth", bins(s.sigma_by_depth, 1.0)},
-          {"sigma_by_angle", bins(s.sigma_by_angle, 180.0 / 3.14159265358979323846)},
-          {"shadow_gap_px", shadow.gap_px},
-          {"shadow_width_px", shadow.width_px},
-          {"hole_sizes_px", s.hole_sizes}};
-}
-
 int run_fidelity(const FidelityOptions& o) {
   io::StagedDir out(o.out, o.force);  // refuses an existing --out before any work
   const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real");
@@ -156,7 +140,7 @@ int run_fidelity(const FidelityOptions& o) {
   }
   io::write_file_atomic(out.path() / "fidelity.txt", [&](std::ostream& f) { f << text.str(); });
   const nlohmann::json j = {{"real", o.real}, {"sim", o.rerender ? "rerender" : o.sim}, {"rows", j_rows},
-                            {"series", {{"real", series(real)}, {"sim", series(simulated)}}}};
+                            {"series", {{"real", stats_series(real)}, {"sim", stats_series(simulated)}}}};
   io::write_file_atomic(out.path() / "fidelity.json", [&](std::ostream& f) { f << j.dump(1) << "\n"; });
   // Figures into the staging directory, so the output appears whole; a failed plot is a
   // warning, the tables stand.

@@ -1,7 +1,10 @@
 #!/usr/bin/python3
-"""Figures for `linksight fidelity`: real against simulated, overlaid.
+"""Figures for `linksight fidelity` (real against simulated, overlaid) and for
+`linksight calibrate-noise --report` (the recording against the fitted model).
 
-Reads DIR/fidelity.json, writes DIR/figures/{sigma_depth,sigma_angle,shadow_band,holes}.png.
+Reads DIR/fidelity.json or DIR/calibration.json ({"series": {label: statistics}}), writes
+DIR/figures/{sigma_depth,sigma_angle,shadow_band,holes}.png; a series without a statistic
+is left out of that figure.
 Usage: plot_fidelity.py DIR
 """
 import json
@@ -29,17 +32,19 @@ def save(fig, path):
 
 
 def main(out_dir):
-    with open(os.path.join(out_dir, "fidelity.json")) as f:
+    name = "fidelity.json" if os.path.exists(os.path.join(out_dir, "fidelity.json")) else "calibration.json"
+    with open(os.path.join(out_dir, name)) as f:
         j = json.load(f)
-    real, sim = j["series"]["real"], j["series"]["sim"]
+    series = list(j["series"].items())
     figures = os.path.join(out_dir, "figures")
     os.makedirs(figures, exist_ok=True)
-    style = {"real": dict(color="black", marker="o"), "sim": dict(color="tab:orange", marker="s")}
+    looks = [dict(color="black", marker="o"), dict(color="tab:orange", marker="s")]
+    style = {label: looks[i % len(looks)] for i, (label, _) in enumerate(series)}
 
     def sigma(key, xlabel, name, title):
         fig, ax = plt.subplots(figsize=(5.5, 4))
-        for label, s in (("real", real), ("sim", sim)):
-            pts = s[key]
+        for label, s in series:
+            pts = s.get(key, [])
             ax.plot([p["centre"] for p in pts], [p["sigma_mm"] for p in pts], label=label, **style[label])
         ax.set_xlabel(xlabel)
         ax.set_ylabel("plane-fit sigma [mm]")
@@ -55,7 +60,9 @@ def main(out_dir):
           "Axial noise against incidence")
 
     fig, ax = plt.subplots(figsize=(5.5, 4))
-    for label, s in (("real", real), ("sim", sim)):
+    for label, s in series:
+        if "shadow_gap_px" not in s:
+            continue
         ax.scatter(s["shadow_gap_px"], s["shadow_width_px"], s=3, alpha=0.3, label=label,
                    color=style[label]["color"])
     ax.set_xlabel("f (1/z_near - 1/z_far) [px]")
@@ -68,8 +75,8 @@ def main(out_dir):
 
     fig, ax = plt.subplots(figsize=(5.5, 4))
     bins = [1, 2, 3, 5, 8, 13, 21, 34, 55, 89, 144, 1001]
-    for label, s in (("real", real), ("sim", sim)):
-        if s["hole_sizes_px"]:
+    for label, s in series:
+        if s.get("hole_sizes_px"):
             ax.hist(s["hole_sizes_px"], bins=bins, histtype="step", linewidth=2, label=label,
                     color=style[label]["color"], density=True)
     ax.set_xscale("log")

@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -100,12 +101,28 @@ inline TrackerParams params_for(const BackendCase& c) {
   return p;
 }
 
+/// The scratch directories this test process made, removed when it exits (kept when
+/// LINKSIGHT_KEEP_SCRATCH is set, to look at after a failure).
+struct ScratchDirs {
+  std::vector<std::filesystem::path> dirs;
+  ~ScratchDirs() {
+    if (std::getenv("LINKSIGHT_KEEP_SCRATCH") != nullptr) return;
+    std::error_code ec;
+    for (const auto& d : dirs) std::filesystem::remove_all(d, ec);
+  }
+};
+inline ScratchDirs& scratch_dirs() {
+  static ScratchDirs dirs;
+  return dirs;
+}
+
 /// A fresh, empty scratch directory for one test.
 inline std::filesystem::path scratch_dir(const std::string& name) {
   const auto dir = std::filesystem::temp_directory_path() /
                    ("linksight_test_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
+  scratch_dirs().dirs.push_back(dir);
   return dir;
 }
 

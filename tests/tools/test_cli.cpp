@@ -550,6 +550,10 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   EXPECT_GT(scene.noise.axial.correlation_px, 1.0);
   EXPECT_NEAR(scene.noise.edges.flying_position, j["flying_position"].get<double>(), 1e-8);
   EXPECT_NE(r.out.find("shape_mm"), std::string::npos) << "the shape correction is reported";
+  for (const char* fig : {"sigma_depth.png", "sigma_angle.png", "shadow_band.png", "holes.png"}) {
+    const fs::path f = dir / "report" / "figures" / fig;
+    EXPECT_GT(fs::exists(f) ? fs::file_size(f) : 0u, 1000u) << fig;
+  }
   // The sr300 preset is this command's output on these frames, rounded (docs/sensor.md):
   // a fit that moves away from it means the preset is stale.
   const sim::NoiseParams preset = sim::NoiseParams::sr300();
