@@ -207,20 +207,37 @@ std::vector<float> unit_variance_gaussian(double s) {
   return k;
 }
 
-// One pass of a separable blur over `lines` lines of `length` samples: sample j of line l
-// is src[l * line_step + j * step]; dst has the same layout.
-void blur_1d(const std::vector<float>& src, std::vector<float>& dst, int lines, int line_step,
-             int length, int step, const std::vector<float>& kernel, int threads) {
+// The separable blur of a w x h row-major field, one pass each way. Every output sums
+// kernel[i + R] * input over the taps inside the field, i ascending from 0, the same float
+// operations in the same order whatever the thread count; the loops run along rows, so
+// the compiler vectorizes them and the column pass reads whole rows.
+void blur_rows(const std::vector<float>& src, std::vector<float>& dst, int w, int h,
+               const std::vector<float>& kernel, int threads) {
   const int R = static_cast<int>(kernel.size() / 2);
 #pragma omp parallel for schedule(static) num_threads(threads)
-  for (int l = 0; l < lines; ++l)
-    for (int j = 0; j < length; ++j) {
-      float acc = 0;
-      for (int i = std::max(-R, -j); i <= std::min(R, length - 1 - j); ++i)
-        acc += kernel[static_cast<std::size_t>(i + R)] *
-               src[static_cast<std::size_t>(l) * line_step + static_cast<std::size_t>(j + i) * step];
-      dst[static_cast<std::size_t>(l) * line_step + static_cast<std::size_t>(j) * step] = acc;
+  for (int y = 0; y < h; ++y) {
+    const float* in = src.data() + static_cast<std::size_t>(y) * w;
+    float* out = dst.data() + static_cast<std::size_t>(y) * w;
+    std::fill(out, out + w, 0.0F);
+    for (int i = -R; i <= R; ++i) {
+      const float k = kernel[static_cast<std::size_t>(i + R)];
+      for (int x = std::max(0, -i); x < std::min(w, w - i); ++x) out[x] += k * in[x + i];
     }
+  }
+}
+void blur_columns(const std::vector<float>& src, std::vector<float>& dst, int w, int h,
+                  const std::vector<float>& kernel, int threads) {
+  const int R = static_cast<int>(kernel.size() / 2);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (int y = 0; y < h; ++y) {
+    float* out = dst.data() + static_cast<std::size_t>(y) * w;
+    std::fill(out, out + w, 0.0F);
+    for (int i = std::max(-R, -y); i <= std::min(R, h - 1 - y); ++i) {
+      const float k = kernel[static_cast<std::size_t>(i + R)];
+      const float* in = src.data() + static_cast<std::size_t>(y + i) * w;
+      for (int x = 0; x < w; ++x) out[x] += k * in[x];
+    }
+  }
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -893,8 +910,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       for (int u = fu0; u <= fu1; ++u)
         m.white[static_cast<std::size_t>(v - fv0) * fw + (u - fu0)] = static_cast<float>(
             normal(pixel_key(frame_seed, static_cast<std::size_t>(v) * W + u), kAxial));
-    blur_1d(m.white, m.blur_rows, fh, fw, fw, 1, m.blur_kernel, threads);  // along rows
-    blur_1d(m.blur_rows, m.white, fw, 1, fh, fw, m.blur_kernel, threads);  // along columns
+    blur_rows(m.white, m.blur_rows, fw, fh, m.blur_kernel, threads);
+    blur_columns(m.blur_rows, m.white, fw, fh, m.blur_kernel, threads);
     for (int y = 0; y < fh; ++y)
       std::copy_n(m.white.begin() + static_cast<std::ptrdiff_t>(y) * fw, fw,
                   m.field.begin() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0);
