@@ -97,7 +97,8 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
 // reading; its median over the bin's own windows) with that shape added in quadrature [m].
 std::pair<double, double> model_read(const sim::DepthStats& s, const sim::NoiseFit& fit,
                                      const sim::DepthStats* shape, bool by_depth, std::size_t k) {
-  const double read = std::sqrt(sim::window_response(fit.params.axial.correlation_px).variance_factor);
+  const double read =
+      std::sqrt(sim::window_response(fit.params.axial.correlation_px, s.window).variance_factor);
   const sim::SigmaBin& b = (by_depth ? s.sigma_by_depth : s.sigma_by_angle)[k];
   double q = 0;
   if (shape != nullptr) {
@@ -105,11 +106,9 @@ std::pair<double, double> model_read(const sim::DepthStats& s, const sim::NoiseF
     if (k < sb.size() && sb[k].windows >= 10) q = sb[k].sigma;
   }
   std::vector<double> model;
-  for (const auto& w : s.samples) {
-    const double x = by_depth ? w.z : w.angle;
-    if (x < b.lo || x >= b.hi || (by_depth && w.angle >= s.depth_bin_max_angle)) continue;
-    model.push_back(read * fit.params.axial.sigma(w.z, w.angle));
-  }
+  for (const auto& w : s.samples)
+    if (sim::in_sigma_bin(w, b, by_depth, s.depth_bin_max_angle))
+      model.push_back(read * fit.params.axial.sigma(w.z, w.angle));
   std::sort(model.begin(), model.end());
   const double m = model.empty() ? 0.0 : model[model.size() / 2];
   return {q, std::sqrt(m * m + q * q)};
@@ -175,11 +174,10 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
      << std::setprecision(2) << s.flying_position << " (IQR " << s.flying_iqr
      << ") of the way from near to far, " << std::setprecision(3) << s.flying_per_edge
      << " of the discontinuities hold a lone one\n";
-  std::vector<int> h = s.hole_sizes;
-  std::sort(h.begin(), h.end());
   os << std::setprecision(1) << "interior holes: " << s.holes_per_frame << " per frame";
-  if (!h.empty())
-    os << ", median " << h[h.size() / 2] << " px, p90 " << h[(h.size() - 1) * 9 / 10] << " px";
+  if (!s.hole_sizes.empty())  // as fit_noise reads them
+    os << ", median " << static_cast<int>(sim::quantile(s.hole_sizes, 0.5)) << " px, p90 "
+       << static_cast<int>(sim::quantile(s.hole_sizes, 0.9)) << " px";
   os << "\n\nnotes:\n";
   for (const std::string& n : fit.notes) os << "  " << n << "\n";
 }

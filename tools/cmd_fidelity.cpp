@@ -105,13 +105,8 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
   out.push_back({"flying rate", r.flying_rate, s.flying_rate});
   out.push_back({"flying position", r.flying_position, s.flying_position});
   out.push_back({"holes per frame", r.holes_per_frame, s.holes_per_frame});
-  auto pct = [](std::vector<int> v, double q) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    return double(v[static_cast<std::size_t>(q * double(v.size() - 1))]);
-  };
-  out.push_back({"hole size median px", pct(r.hole_sizes, 0.5), pct(s.hole_sizes, 0.5)});
-  out.push_back({"hole size p90 px", pct(r.hole_sizes, 0.9), pct(s.hole_sizes, 0.9)});
+  out.push_back({"hole size median px", sim::quantile(r.hole_sizes, 0.5), sim::quantile(s.hole_sizes, 0.5)});
+  out.push_back({"hole size p90 px", sim::quantile(r.hole_sizes, 0.9), sim::quantile(s.hole_sizes, 0.9)});
   out.push_back({"depth step mm", r.depth_step * 1e3, s.depth_step * 1e3});
   return out;
 }

@@ -1,29 +1,32 @@
 #include "linksight/sim/depth_stats.hpp"
 
-#include "linksight/sim/sensor.hpp"
-
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <limits>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <stdexcept>
 #include <string>
 
-#include <Eigen/Dense>
+#include "linksight/sim/sensor.hpp"
 
 namespace linksight::sim {
 
 namespace {
 
-double median(std::vector<double> v) {
+// The median (the mean of the two middle values for an even count); reorders `v`.
+double median_in_place(std::vector<double>& v) {
   if (v.empty()) return 0;
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
   if (v.size() % 2) return *mid;
   return 0.5 * (*mid + *std::max_element(v.begin(), mid));
 }
+double median(std::vector<double> v) { return median_in_place(v); }
 
 // One discontinuity found on a row: widths in px, depths in m.
 struct Edge {
@@ -387,11 +390,9 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
       bin.hi = edges_[b + 1];
       std::vector<double> sig, at;
       for (const DepthStats::Window& w : s.samples) {
-        const double x = by_depth ? w.z : w.angle;
-        if (x < bin.lo || x >= bin.hi) continue;
-        if (by_depth && w.angle >= p.depth_bin_max_angle) continue;
+        if (!in_sigma_bin(w, bin, by_depth, p.depth_bin_max_angle)) continue;
         sig.push_back(w.sigma);
-        at.push_back(x);
+        at.push_back(by_depth ? w.z : w.angle);
       }
       bin.windows = static_cast<int>(sig.size());
       bin.sigma = median(sig);
@@ -440,23 +441,13 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   s.flying = flying;
   s.flying_rate = s.band_neighbours > 0 ? static_cast<double>(flying) / s.band_neighbours : 0;
   s.flying_position = median(positions);
-  if (!positions.empty()) {
-    std::sort(positions.begin(), positions.end());
-    const auto at = [&](double q) {
-      return positions[static_cast<std::size_t>(q * static_cast<double>(positions.size() - 1))];
-    };
-    s.flying_iqr = at(0.75) - at(0.25);
-  }
+  s.flying_iqr = quantile(positions, 0.75) - quantile(positions, 0.25);
   const int crossings = s.near_left.edges + s.near_right.edges;
   s.flying_per_edge = crossings > 0 ? static_cast<double>(lone) / crossings : 0;
   s.pixels = static_cast<long>(K.width) * K.height * s.frames;
   s.holes_per_frame = static_cast<double>(s.hole_sizes.size()) / s.frames;
   return s;
 }
-
-}  // namespace linksight::sim
-
-namespace linksight::sim {
 
 WindowResponse window_response(double correlation_px, int window) {
   if (window < 5)
@@ -586,17 +577,14 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
     const std::vector<SigmaBin>& bins = by_depth ? s.sigma_by_depth : s.sigma_by_angle;
     for (std::size_t k = 0; k < bins.size(); ++k) {
       const SigmaBin& b = bins[k];
+      if (b.windows < 10) continue;
       Bin bin;
-      std::vector<double> ys;
       for (const DepthStats::Window& w : s.samples) {
-        const double x = by_depth ? w.z : w.angle;
-        if (x < b.lo || x >= b.hi || (by_depth && w.angle >= s.depth_bin_max_angle)) continue;
+        if (!in_sigma_bin(w, b, by_depth, s.depth_bin_max_angle)) continue;
         bin.z2.push_back(w.z * w.z);
         bin.g.push_back(g_of(w.z, w.angle));
-        ys.push_back(w.sigma);
       }
-      if (ys.size() < 10) continue;
-      double m = median(ys);
+      double m = b.sigma;  // the median of these windows' sigma
       if (shape != nullptr) {
         const std::vector<SigmaBin>& q = by_depth ? shape->sigma_by_depth : shape->sigma_by_angle;
         if (k < q.size() && q[k].windows >= 10 && std::abs(q[k].lo - b.lo) < 1e-9) {
@@ -620,13 +608,16 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
   // bins is what a comparison of a simulation with the camera (linksight fidelity) sees,
   // so that is what the fit keeps small. A coarse grid, then a pattern search around its
   // best point.
+  // The largest relative error at x; stops once it reaches `enough` (the best so far),
+  // since the caller then discards it.
   std::vector<double> model;
-  auto worst = [&](const Eigen::Vector3d& x) {
+  auto worst = [&](const Eigen::Vector3d& x, double enough) {
     double e = 0;
     for (const Bin& b : cells) {
       model.resize(b.z2.size());
       for (std::size_t i = 0; i < model.size(); ++i) model[i] = x[0] + x[1] * b.z2[i] + x[2] * b.g[i];
-      e = std::max(e, std::abs(median(model) / b.y - 1));
+      e = std::max(e, std::abs(median_in_place(model) / b.y - 1));
+      if (e >= enough) break;
     }
     return e;
   };
@@ -639,7 +630,7 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
       for (int j = 0; j <= kSteps; ++j)
         for (int k = 0; k <= kSteps; ++k) {
           const Eigen::Vector3d x(span[0] * i / kSteps, span[1] * j / kSteps, span[2] * k / kSteps);
-          const double e = worst(x);
+          const double e = worst(x, best);
           if (e < best) best = e, coef = x;
         }
     Eigen::Vector3d step = span / kSteps;
@@ -649,18 +640,18 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
         for (const double sign : {-1.0, 1.0}) {
           Eigen::Vector3d x = coef;
           x[d] = std::max(0.0, x[d] + sign * step[d]);
-          const double e = worst(x);
+          const double e = worst(x, best);
           if (e < best) best = e, coef = x, moved = true;
         }
       if (!moved) step *= 0.5;
     }
   }
-  if (std::isfinite(best)) {
+  if (cells.size() >= 3) {
     ax.a = coef[0];
     ax.c = coef[1];
     ax.k_theta = coef[2];
   } else {
-    fit.notes.push_back("axial a_m, c_per_m, k_theta kept: under 3 cells of depth x angle "
+    fit.notes.push_back("axial a_m, c_per_m, k_theta kept: under 3 depth or angle bins "
                         "with 10 flat windows");
   }
   if (s.projector_side != 0) {
@@ -675,13 +666,10 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
     Dropouts& d = fit.params.dropouts;
     d.hole_rate = std::min(1e4, s.holes_per_frame * static_cast<double>(s.pixels) /
                                     static_cast<double>(s.valid_px));
-    std::vector<double> sizes(s.hole_sizes.begin(), s.hole_sizes.end());
-    std::sort(sizes.begin(), sizes.end());
-    const auto at = [&](double q) {
-      return sizes[static_cast<std::size_t>(q * static_cast<double>(sizes.size() - 1))];
-    };
-    d.hole_median_px = std::clamp(at(0.5), 1.0, static_cast<double>(Dropouts::kMaxHolePx));
-    d.hole_p90_px = std::clamp(at(0.9), d.hole_median_px, static_cast<double>(Dropouts::kMaxHolePx));
+    d.hole_median_px =
+        std::clamp(quantile(s.hole_sizes, 0.5), 1.0, static_cast<double>(Dropouts::kMaxHolePx));
+    d.hole_p90_px = std::clamp(quantile(s.hole_sizes, 0.9), d.hole_median_px,
+                               static_cast<double>(Dropouts::kMaxHolePx));
   } else {
     fit.notes.emplace_back("dropouts.hole_rate, hole_median_px, hole_p90_px kept: no interior hole");
   }

@@ -7,8 +7,10 @@
 /// and of a simulated one (`linksight render`), which is what `calibrate-noise` fits the
 /// noise model to and what `fidelity` compares. Nothing here knows the scene.
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "linksight/io/depth_png.hpp"
@@ -102,6 +104,24 @@ struct DepthStats {
   long pixels = 0;  ///< width x height x frames: valid_px / pixels is the valid fraction
 };
 
+/// Whether window `w` counts in `bin` of sigma by depth (`by_depth`: only windows under
+/// `max_angle` [rad]) or by incidence angle.
+[[nodiscard]] inline bool in_sigma_bin(const DepthStats::Window& w, const SigmaBin& bin,
+                                       bool by_depth, double max_angle) {
+  const double x = by_depth ? w.z : w.angle;
+  return x >= bin.lo && x < bin.hi && !(by_depth && w.angle >= max_angle);
+}
+
+/// The q-quantile (0 <= q <= 1) of `values` by the lower nearest rank: element
+/// floor(q (n - 1)) of the sorted values; 0 when there are none.
+template <class T>
+[[nodiscard]] double quantile(std::vector<T> values, double q) {
+  if (values.empty()) return 0;
+  const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return static_cast<double>(values[static_cast<std::size_t>(k)]);
+}
+
 /// Statistics of `frames` (raw depth, 0 = invalid) with `intrinsics` (size and depth unit
 /// must match). Throws std::invalid_argument naming the problem: no frame, a size that
 /// differs from the intrinsics, no valid pixel, or too few flat windows to estimate sigma.
@@ -117,14 +137,6 @@ struct DepthStats {
 [[nodiscard]] std::vector<io::DepthImage> rerender_surfaces(
     const std::vector<io::DepthImage>& frames, const io::Intrinsics& intrinsics,
     const NoiseParams& noise, std::uint64_t seed, const DepthSurfaceParams& surface = {});
-
-}  // namespace linksight::sim
-
-#include <string>
-
-#include "linksight/sim/noise.hpp"
-
-namespace linksight::sim {
 
 /// What the window estimator of depth_stats reads from unit-variance noise whose
 /// correlation is Gaussian with width `correlation_px` (AxialNoise::correlation_px), over
@@ -148,8 +160,8 @@ struct NoiseFit {
 /// - the correlation width whose window_response (at stats.window) matches the measured
 ///   lag-1 correlation, and with it the plane-fit sigma corrected to the noise's own;
 /// - axial a, c, k_theta jointly, non-negative, minimizing the largest relative error
-///   over the cells of depth bin x angle bin with 10 windows or more (what a comparison
-///   with the camera sees);
+///   over the depth bins and the angle bins with 10 windows or more (what a comparison
+///   with the camera sees), each bin's model its median over the bin's windows;
 /// - the projector baseline, signed, when the shadows decide a side;
 /// - the edge band on the side away from the shadow (band_p1, band_p2 given start's
 ///   p_drop); the flying pixels' position and spread (median and interquartile range),
@@ -159,7 +171,7 @@ struct NoiseFit {
 /// With `shape` (the statistics of the recording's surfaces re-rendered without noise,
 /// rerender_surfaces), each bin's sigma is first corrected for what the surfaces' shape
 /// puts into a plane fit: sqrt(sigma^2 - shape^2), since the camera's noise and the
-/// shape's residual add in quadrature.
+/// shape's residual add in quadrature (at least a tenth of sigma is kept).
 /// Every term kept from `start`, and every measurement the model cannot follow, gets a note.
 [[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start,
                                  const DepthStats* shape = nullptr);

@@ -54,8 +54,8 @@ struct DepthSurfaceParams {
   /// band; otherwise (a hole) linearly.
   int max_gap_px = 40;
   double jump = 0.02;        ///< [m]
-  /// The depth is smoothed by a Gaussian of this sigma [px] over neighbours within `jump`
-  /// (edges stay sharp), so that the camera's own noise is not baked into the surface; a
+  /// The depth is smoothed by a Gaussian of this sigma [px] over neighbours within
+  /// 3 `jump` (edges stay sharp), so that the camera's own noise is not baked into the surface; a
   /// Gaussian keeps a quadratic surface, so the curvature a 15x15 plane fit sees stays.
   double smoothing_px = 8.0;
   void validate() const;  ///< throws std::invalid_argument naming the field
