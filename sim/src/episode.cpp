@@ -42,6 +42,7 @@ struct Episode::Impl {
   Eigen::Isometry3d X_CW;
   Nodes previous_C;  // the last frame's true nodes, camera frame
   bool chain_only = false;        // render the chain's box only, but for whole_frames
+  int margin_px = 0;              // and that box grown by the segmentation's leakage reach
   std::vector<int> whole_frames;  // sorted
   DepthFrame image;
   Cloud cloud;
@@ -66,6 +67,8 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
   m.sensor = make_sensor(scene, options.threads);
   m.chain_only = options.chain_only_images &&
                  scene.segmentation.mode == ExtractParams::Mode::truth;
+  // Leaked background pixels lie within leakage_px of a link pixel.
+  m.margin_px = scene.segmentation.leakage > 0 ? scene.segmentation.leakage_px : 0;
   m.whole_frames = options.whole_frames;
   std::sort(m.whole_frames.begin(), m.whole_frames.end());
   for (const TrackerMode mode : m.modes) {
@@ -136,8 +139,7 @@ const EpisodeFrame& Episode::step_frame() {
   RenderExtent extent;
   extent.chain_only =
       m.chain_only && !std::binary_search(m.whole_frames.begin(), m.whole_frames.end(), f);
-  // Leaked background pixels lie within leakage_px of a link pixel.
-  extent.margin_px = m.scene.segmentation.leakage > 0 ? m.scene.segmentation.leakage_px : 0;
+  extent.margin_px = m.margin_px;
   m.sensor->render(o.truth.X_WK, o.t, m.scene.seed, frame, m.image, extent);
   m.times.render = seconds_since(t0);
   t0 = std::chrono::steady_clock::now();

@@ -20,6 +20,8 @@ namespace {
 constexpr unsigned kMaskScene = 1;
 constexpr unsigned kMaskOccluder = 2;
 constexpr int kPacket = 16;
+// How far from a pixel the edge model looks for a discontinuity [px] (its 2-px band).
+constexpr int kEdgeReach = 2;
 
 // Counter-based draws: a (key, stream) pair always gives the same number, whichever
 // thread asks, so noise does not depend on the thread count.
@@ -95,17 +97,20 @@ double acos_unit(double x) {
                               x * (-0.0170881256 + x * (0.0066700901 + x * -0.0012624911)))))));
 }
 
-// Pixels [u0, u1] x [v0, v1] (inclusive); empty when u0 > u1 or v0 > v1.
-struct PixelRect {
-  int u0 = 0, u1 = -1, v0 = 0, v1 = -1;
+// A PixelBox that packets can be tested against. Its bounds may lie one pixel outside the
+// image (reachable() clamps to [-1, size]).
+struct PixelRect : PixelBox {
   // Whether the 16 pixels (u, v) ... (u + 15, v) of a packet reach into the rectangle.
   [[nodiscard]] bool touches(int u, int v) const {
     return v >= v0 && v <= v1 && u + kPacket - 1 >= u0 && u <= u1;
   }
-  [[nodiscard]] bool contains(int u, int v) const {
-    return v >= v0 && v <= v1 && u >= u0 && u <= u1;
-  }
 };
+// `r` grown by `by` pixels each way, clipped to a W x H image; empty stays empty.
+PixelRect grown(const PixelRect& r, int by, int W, int H) {
+  if (r.empty()) return {};
+  return {{std::max(0, r.u0 - by), std::min(W - 1, r.u1 + by), std::max(0, r.v0 - by),
+           std::min(H - 1, r.v1 + by)}};
+}
 // The pixels whose rays, jittered by at most `margin_px`, can reach the world box
 // [lo, hi]. A pinhole ray reaches the box only if it passes inside the box's projection,
 // and the projection of a convex body lies in the hull of its corners' projections.
@@ -113,7 +118,7 @@ struct PixelRect {
 // distorted camera.
 PixelRect reachable(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
                     const Eigen::Isometry3d& X_WC, const io::Intrinsics& K, double margin_px) {
-  const PixelRect all{0, K.width - 1, 0, K.height - 1};
+  const PixelRect all{{0, K.width - 1, 0, K.height - 1}};
   if (!(lo.array() <= hi.array()).all()) return {};  // nothing in the scene
   if (K.model != io::Distortion::none) return all;
   const Eigen::Isometry3d X_CW = X_WC.inverse();
@@ -134,10 +139,10 @@ PixelRect reachable(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
   const auto clamp_to = [](double x, int hi_px) {
     return static_cast<int>(std::clamp(x, -1.0, static_cast<double>(hi_px) + 1));
   };
-  return {clamp_to(std::floor(u_min - margin_px), K.width - 1),
-          clamp_to(std::ceil(u_max + margin_px), K.width - 1),
-          clamp_to(std::floor(v_min - margin_px), K.height - 1),
-          clamp_to(std::ceil(v_max + margin_px), K.height - 1)};
+  return {{clamp_to(std::floor(u_min - margin_px), K.width - 1),
+           clamp_to(std::ceil(u_max + margin_px), K.width - 1),
+           clamp_to(std::floor(v_min - margin_px), K.height - 1),
+           clamp_to(std::ceil(v_max + margin_px), K.height - 1)}};
 }
 
 // A body that may cast a projector shadow, seen from the projector: the bounds of its
@@ -362,7 +367,10 @@ struct Sensor::Impl {
   std::vector<std::uint8_t> lit, hole, label_no_occluders;
   std::vector<bool> occluder_on;  // whether each occluder's instance is enabled
   std::vector<float> blur_kernel;              // correlated axial noise, set at set-up
-  std::vector<float> white, blur_rows, field;  // its per-frame buffers (see render)
+  std::vector<float> white, blurred, field;  // its per-frame buffers (see render)
+  std::vector<int> blob;                     // the hole being grown (see render)
+  std::vector<std::uint32_t> blob_stamp;     // per pixel: the id of the last blob it joined
+  std::uint32_t blob_id = 0;
   Eigen::AlignedBox3d component_box;  // a component's bounds in its own frame K
   std::vector<Eigen::AlignedBox3d> occluder_box;  // each occluder's bounds in its own frame
   SensorTimes times;
@@ -607,9 +615,10 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   out.depth_clean_m.assign(n, 0.0F);
   out.label.assign(n, kLabelNothing);
   out.incidence.assign(n, std::numeric_limits<float>::quiet_NaN());
-  m.cos_c.assign(n, 0.0F);
-  m.cos_p.assign(n, 0.0F);
-  m.reflect.assign(n, 0.0F);
+  // Read at hit pixels only, which the cast writes; lit defaults to 1 (only shadows clear it).
+  m.cos_c.resize(n);
+  m.cos_p.resize(n);
+  m.reflect.resize(n);
   m.lit.assign(n, 1);
   const std::uint64_t frame_seed = derive_seed(derive_seed(seed, "sensor"), frame);
   const int threads = m.p.threads > 0 ? m.p.threads : omp_get_max_threads();
@@ -652,7 +661,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   // Culling: pixels outside these rectangles cannot see anything (scene_rect), a moving
   // body (moving_rect, one per body) or the chain (chain_rect).
   const double margin_px = 1.0 + (jitter ? noise.lateral.sigma_px * kMaxNormal32 : 0.0);
-  const PixelRect everything{0, W - 1, 0, H - 1};
+  const PixelRect everything{{0, W - 1, 0, H - 1}};
   PixelRect scene_rect = everything;
   std::vector<PixelRect> moving_rect(moving_W.size(), everything);
   const bool any_static = !m.static_box.empty();
@@ -672,16 +681,12 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     scene_rect = reachable(all_W.min(), all_W.max(), m.p.camera.X_WC, K, margin_px);
   }
   const PixelRect& chain_rect = moving_rect[0];
-  // What to compute: `inner` gets the noise pass; the clean images reach 2 px further,
-  // as far as the edge model looks, so that inner's pixels match a whole-frame render.
-  auto grown = [&](const PixelRect& r, int by) {
-    if (r.u0 > r.u1 || r.v0 > r.v1) return PixelRect{};
-    return PixelRect{std::max(0, r.u0 - by), std::min(W - 1, r.u1 + by), std::max(0, r.v0 - by),
-                     std::min(H - 1, r.v1 + by)};
-  };
-  const PixelRect inner = extent.chain_only ? grown(chain_rect, extent.margin_px) : everything;
-  const PixelRect cast_rect = extent.chain_only ? grown(inner, 2) : everything;
-  out.rendered = {inner.u0, inner.u1, inner.v0, inner.v1};
+  // What to compute: `inner` gets the noise pass; the clean images reach kEdgeReach px
+  // further, as far as the edge model looks, so that inner's pixels match a whole-frame
+  // render.
+  const PixelRect inner = extent.chain_only ? grown(chain_rect, extent.margin_px, W, H) : everything;
+  const PixelRect cast_rect = extent.chain_only ? grown(inner, kEdgeReach, W, H) : everything;
+  out.rendered = inner;
 
   auto t1 = std::chrono::steady_clock::now();
   // Rows dealt out in small chunks: the link covers a band of rows, so halves would not
@@ -824,15 +829,19 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       }
     }
   }
-  for (std::size_t pix = 0; pix < n; ++pix) {
-    const std::uint8_t l = out.label[pix];
-    if (l < m.count) {
-      ++out.visible_px[l];
-      ++out.visible_px_unoccluded[l];
-    } else if (!m.occluders.empty() && m.label_no_occluders[pix] < m.count) {
-      ++out.visible_px_unoccluded[m.label_no_occluders[pix]];
+  // The chain is seen, with or without occluders, inside its rectangle only.
+  const PixelRect counted = grown(chain_rect, 0, W, H);
+  for (int v = counted.v0; v <= counted.v1; ++v)
+    for (int u = counted.u0; u <= counted.u1; ++u) {
+      const std::size_t pix = static_cast<std::size_t>(v) * W + u;
+      const std::uint8_t l = out.label[pix];
+      if (l < m.count) {
+        ++out.visible_px[l];
+        ++out.visible_px_unoccluded[l];
+      } else if (!m.occluders.empty() && m.label_no_occluders[pix] < m.count) {
+        ++out.visible_px_unoccluded[m.label_no_occluders[pix]];
+      }
     }
-  }
   long vis = 0, unocc = 0;
   for (int c = 0; c < m.count; ++c) {
     vis += out.visible_px[c];
@@ -865,7 +874,8 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     const double mu = std::log(noise.dropouts.hole_median_px);
     const double s_ln = std::log(noise.dropouts.hole_p90_px / noise.dropouts.hole_median_px) /
                         1.2815515655446004;  // the standard normal's 90th percentile
-    std::vector<int> blob;
+    std::vector<int>& blob = m.blob;
+    m.blob_stamp.resize(n, 0);  // pixel k is in the current blob when its stamp is blob_id
     for (int h = 0; h < holes; ++h) {
       const int u0 = std::min(W - 1, static_cast<int>(next() * W));
       const int v0 = std::min(H - 1, static_cast<int>(next() * H));
@@ -873,13 +883,22 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
       const int area = static_cast<int>(std::clamp(std::lround(std::exp(mu + s_ln * g)), 1L,
                                                    static_cast<long>(Dropouts::kMaxHolePx)));
       // Grown one 4-neighbour of a random member at a time: a compact, ragged blob.
+      if (++m.blob_id == 0) {  // the ids wrapped: forget every stamp
+        std::fill(m.blob_stamp.begin(), m.blob_stamp.end(), 0U);
+        m.blob_id = 1;
+      }
+      const std::uint32_t id = m.blob_id;
       blob.assign(1, v0 * W + u0);
+      m.blob_stamp[static_cast<std::size_t>(blob[0])] = id;
       for (int tries = 0; static_cast<int>(blob.size()) < area && tries < 50 * area; ++tries) {
         const int k = blob[std::min(blob.size() - 1, static_cast<std::size_t>(next() * blob.size()))];
         const int d = std::min(3, static_cast<int>(next() * 4));
         const int u = k % W + (d == 0) - (d == 1), v = k / W + (d == 2) - (d == 3);
         if (u < 0 || u >= W || v < 0 || v >= H) continue;
-        if (std::find(blob.begin(), blob.end(), v * W + u) == blob.end()) blob.push_back(v * W + u);
+        const std::size_t kk = static_cast<std::size_t>(v) * W + u;
+        if (m.blob_stamp[kk] == id) continue;
+        m.blob_stamp[kk] = id;
+        blob.push_back(v * W + u);
       }
       for (const int k : blob) m.hole[static_cast<std::size_t>(k)] = 1;
     }
@@ -889,9 +908,9 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
   // its pixel's key only, so the field is the same for any thread count.
   const bool correlated = noise.axial.enabled && noise.axial.correlation_px > 0;
   int bu0 = W, bu1 = -1, bv0 = H, bv1 = -1;
-  if (correlated) {
-    for (int v = 0; v < H; ++v)
-      for (int u = 0; u < W; ++u)
+  if (correlated) {  // hits lie in the cast rectangle
+    for (int v = std::max(0, cast_rect.v0); v <= std::min(H - 1, cast_rect.v1); ++v)
+      for (int u = std::max(0, cast_rect.u0); u <= std::min(W - 1, cast_rect.u1); ++u)
         if (out.depth_clean_m[static_cast<std::size_t>(v) * W + u] > 0) {
           bu0 = std::min(bu0, u), bu1 = std::max(bu1, u);
           bv0 = std::min(bv0, v), bv1 = std::max(bv1, v);
@@ -903,15 +922,15 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
     const int fv0 = std::max(0, bv0 - R), fv1 = std::min(H - 1, bv1 + R);
     const int fw = fu1 - fu0 + 1, fh = fv1 - fv0 + 1;
     m.white.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
-    m.blur_rows.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
+    m.blurred.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
     m.field.assign(n, 0.0F);
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int v = fv0; v <= fv1; ++v)
       for (int u = fu0; u <= fu1; ++u)
         m.white[static_cast<std::size_t>(v - fv0) * fw + (u - fu0)] = static_cast<float>(
             normal(pixel_key(frame_seed, static_cast<std::size_t>(v) * W + u), kAxial));
-    blur_rows(m.white, m.blur_rows, fw, fh, m.blur_kernel, threads);
-    blur_columns(m.blur_rows, m.white, fw, fh, m.blur_kernel, threads);
+    blur_rows(m.white, m.blurred, fw, fh, m.blur_kernel, threads);
+    blur_columns(m.blurred, m.white, fw, fh, m.blur_kernel, threads);
     for (int y = 0; y < fh; ++y)
       std::copy_n(m.white.begin() + static_cast<std::ptrdiff_t>(y) * fw, fw,
                   m.field.begin() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0);
@@ -958,7 +977,7 @@ void Sensor::render(const std::vector<Eigen::Isometry3d>& X_WK, double t, std::u
           // and the pixel after it, not be the sum of two steps of a steep slope. Only
           // looked at when that band can drop anything (it costs a third of the pass).
           if (!(e.band_p2 > 0)) continue;
-          const int u2 = u + 2 * du[k], v2 = v + 2 * dv[k];
+          const int u2 = u + kEdgeReach * du[k], v2 = v + kEdgeReach * dv[k];
           if (u2 < 0 || u2 >= W || v2 < 0 || v2 >= H) continue;
           const double z2 = clean(u2, v2);
           if (zn > 0 && std::abs(zn - z0) <= e.jump && z2 > 0 && zn - z2 > e.jump) far_2 = true;

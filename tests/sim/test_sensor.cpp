@@ -499,6 +499,38 @@ TEST(Sensor, ChainOnlyRenderMatchesTheWholeFrameInsideItsBox) {
       EXPECT_GT(b.link_occluded_fraction, 0.05);
     }
   }
+  // The edge model's 2-px reach: a near plate whose edge falls 1.6 px right of the box.
+  // The box's last column then has a nearer surface 2 px away (its 2-px band); a cast
+  // area only 1 px wider than the box would not see it.
+  {
+    const PixelBox box = sensor->render(truth.X_WK, 0.0, 7, 3, extent).rendered;
+    const io::Intrinsics& K = scene.camera.intrinsics;
+    const Eigen::Isometry3d& X_WC = scene.camera.X_WC;
+    constexpr double kFront = 0.4, kHalfThickness = 0.0001;  // [m]: camera z of its face
+    const Eigen::Vector3d edge_C = K.deproject(box.u1 + 1.6, 0.5 * (box.v0 + box.v1), kFront);
+    Occluder plate;  // axes along the camera's
+    plate.shape.half_extents = Eigen::Vector3d(0.05, 0.4, kHalfThickness);
+    Eigen::Isometry3d X_WO = X_WC;
+    X_WO.translation() = X_WC * (edge_C + Eigen::Vector3d(0.05, 0.0, kHalfThickness));
+    plate.path = BaseTrajectory({{0.0, X_WO}, {10.0, X_WO}}, {});
+    Scene with_plate = scene;
+    with_plate.occluders.push_back(plate);
+    auto plated = make_sensor(with_plate, 2);
+    const DepthFrame a = plated->render(truth.X_WK, 0.0, 7, 3);
+    const DepthFrame b = plated->render(truth.X_WK, 0.0, 7, 3, extent);
+    ASSERT_EQ(b.rendered, box);
+    int plate_px = 0, dropped_at_edge = 0;
+    for (int v = box.v0; v <= box.v1; ++v) {
+      const std::size_t i = static_cast<std::size_t>(v) * a.width;
+      const std::uint8_t l = a.label[i + box.u1 + 2];
+      plate_px += l >= kLabelOccluder0 && l < kLabelBackground;
+      dropped_at_edge += a.depth.data[i + box.u1] == 0;
+      for (int u = box.u0; u <= box.u1; ++u)
+        ASSERT_EQ(a.depth.data[i + u], b.depth.data[i + u]) << "with the plate, " << u << ", " << v;
+    }
+    EXPECT_GT(plate_px, (box.v1 - box.v0) / 2) << "the plate should start 2 px right of the box";
+    EXPECT_GT(dropped_at_edge, plate_px / 4) << "its 2-px band should drop pixels in the box";
+  }
   extent.margin_px = -1;
   try {
     (void)sensor->render(truth.X_WK, 0.0, 7, 3, extent);

@@ -89,9 +89,10 @@ struct PixelBox {
 /// Which pixels render() computes.
 struct RenderExtent {
   /// Only the pixels the chain can be seen in (its bounds' projection, widened by the
-  /// largest jitter), grown by `margin_px`. Every other pixel is left as a miss. Inside,
-  /// the images are those of a whole-frame render, bit for bit: the edge model's 2-px
-  /// reach is cast too. What a label-segmented cloud needs, at a fraction of the cost of
+  /// largest jitter), grown by `margin_px`. Inside, the images are those of a whole-frame
+  /// render, bit for bit; depth and depth_m hold a miss everywhere else. The noise-free
+  /// images (depth_clean_m, label, incidence) are cast 2 px further, as far as the edge
+  /// model reads, and hold a miss beyond that. What a label-segmented cloud needs, at a fraction of the cost of
   /// a frame where every ray hits the background.
   bool chain_only = false;
   int margin_px = 0;  ///< [px], >= 0; cover ExtractParams::leakage_px
@@ -101,7 +102,7 @@ struct RenderExtent {
 struct DepthFrame {
   int width = 0, height = 0;
   /// The pixels rendered: the whole image, or the chain's box (RenderExtent::chain_only).
-  /// Outside it, every image holds a miss.
+  /// Outside it, depth and depth_m hold a miss (the noise-free images reach 2 px further).
   PixelBox rendered;
   io::DepthImage depth;               ///< sensor units (intrinsics.depth_scale), 0 = none
   std::vector<float> depth_m;         ///< [m], 0 = none (quantized when noise.quantize)
