@@ -140,8 +140,11 @@ TEST(DepthStats, RecoversFlyingPixelAndHoleRates) {
     const DepthStats s = depth_stats(frames, K);
     const NoiseFit fit = fit_noise(s, NoiseParams::sr300());
     EXPECT_NEAR(fit.params.edges.p_flying, r.p_flying, kRateRelTol * r.p_flying);
-    EXPECT_NEAR(fit.params.edges.flying_position, r.position, 0.1);
     EXPECT_NEAR(fit.params.dropouts.hole_rate, r.hole_rate, kRateRelTol * r.hole_rate);
+    // Not rates (the issue sets no band for these): the position is a median of what lands
+    // 10-90% across, and sizes are whole pixels of blobs that can touch and merge, so a
+    // median of 2 px may read 3. Bands: 0.1 of the gap, half the median, and 30%.
+    EXPECT_NEAR(fit.params.edges.flying_position, r.position, 0.1);
     EXPECT_NEAR(fit.params.dropouts.hole_median_px, r.median, 0.5 * r.median);
     EXPECT_NEAR(fit.params.dropouts.hole_p90_px, r.p90, 0.3 * r.p90);
   }
@@ -188,7 +191,8 @@ TEST(DepthStats, RealFramesGiveTheMeasuredFigures) {
   EXPECT_EQ(s.projector_side, -1);
   EXPECT_NEAR(s.baseline, -0.055, 0.010);
   // Every discontinuity has an invalid band: no valid pixel jumps straight across (under
-  // 1% here), and on the shadow side the first pixel past the near surface is invalid.
+  // 1% here); the issue measured the far side invalid at about 100% at 1 px and 72-97% at
+  // 2 px, the lower ends of which are the bands.
   EXPECT_LT(s.near_left.direct, 0.01 * s.near_left.edges);
   EXPECT_GT(s.near_left.invalid_1px, 0.97);
   EXPECT_GT(s.near_right.invalid_2px, 0.72);
@@ -205,16 +209,12 @@ TEST(DepthStats, RealFramesGiveTheMeasuredFigures) {
   EXPECT_NEAR(s.depth_step, 0.000125, 1e-12);
 }
 
-// The estimator's reading of correlated noise: white reads white with the plane fit's own
-// 3 dof taken into account; a wider kernel reads a higher lag-1 correlation (rising to
-// about 3 px, then flat near 0.9: the quadratic fit removes what is smoother) and a lower
-// sigma (fit_noise bisects on the lag-1 reading).
 // Issue 8's fidelity check: the re-derived sr300 preset against the real frames, on the
 // real frames' own geometry (0.5-0.9 m): each frame's surface rebuilt from its depth
 // (depth_surface_mesh: bands and holes filled, the camera's noise smoothed away) and
 // rendered through the simulated camera at the real intrinsics (rerender_surfaces), so
-// the two recordings differ in the sensor model only. Bands as the issue sets them: sigma per depth bin
-// within 25% (a plane fit on skin and clothing is an upper bound, and the real sigma is
+// the two recordings differ in the sensor model only. Bands as the issue sets them: sigma
+// per depth bin within 25% (a plane fit on skin and clothing is an upper bound, and the real sigma is
 // not monotone in depth, which a + c z^2 cannot follow exactly); the edge bands (first
 // and second pixel invalid, each side) and the flying-pixel rate within 30%.
 constexpr double kFidelitySigmaTol = 0.25;
@@ -225,6 +225,7 @@ TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
   const std::vector<io::DepthImage> real = real_frames(K);
   const DepthStats r = depth_stats(real, K);
   const DepthStats s = depth_stats(rerender_surfaces(real, K, NoiseParams::sr300(), 11), K);
+  ASSERT_EQ(r.sigma_by_depth.size(), s.sigma_by_depth.size());  // the same bin edges
   int bins = 0;
   for (std::size_t b = 0; b < r.sigma_by_depth.size(); ++b) {
     const SigmaBin& rb = r.sigma_by_depth[b];
@@ -237,6 +238,7 @@ TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
   EXPECT_GE(bins, 3) << "the frames cover 0.5-0.9 m";
   auto edges = [&](const char* name, const EdgeSide& re, const EdgeSide& se) {
     SCOPED_TRACE(name);
+    ASSERT_GE(re.edges, 100);
     ASSERT_GE(se.edges, 100);
     EXPECT_NEAR(se.invalid_1px / re.invalid_1px, 1.0, kFidelityEdgeTol);
     EXPECT_NEAR(se.invalid_2px / re.invalid_2px, 1.0, kFidelityEdgeTol);
@@ -247,12 +249,17 @@ TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
   EXPECT_EQ(s.projector_side, r.projector_side);
 }
 
+// The estimator's reading of correlated noise: white reads white with the plane fit's own
+// 3 dof taken into account; a wider kernel reads a higher lag-1 correlation (rising to
+// about 3 px, then flat near 0.9: the quadratic fit removes what is smoother) and a lower
+// sigma (fit_noise bisects on the lag-1 reading).
 TEST(DepthStats, WindowResponseOfCorrelatedNoise) {
   const WindowResponse white = window_response(0.0);
   EXPECT_NEAR(white.variance_factor, 1.0, 1e-12);
   EXPECT_LT(std::abs(white.correlation[0]), 0.05);
   double last = -1, last_var = 2;
-  for (double s = 0.3; s <= 6.0; s += 0.3) {
+  for (int i = 1; i <= 20; ++i) {
+    const double s = 0.3 * i;
     const WindowResponse r = window_response(s);
     if (s < 3.0) {
       EXPECT_GT(r.correlation[0], last + 1e-3) << s;

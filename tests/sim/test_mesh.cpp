@@ -17,6 +17,7 @@
 
 #include "linksight/io/error.hpp"
 #include "linksight/sim/mesh.hpp"
+#include "test_support.hpp"
 
 namespace linksight::sim {
 namespace {
@@ -234,8 +235,8 @@ namespace {
 
 // depth_surface_mesh: a plane at 0.6 m with a near block at 0.5 m in front of it, the
 // block's right edge followed by a 6-px invalid band and a 2-px hole in the plane. The
-// band is filled with the far (plane) depth, the hole linearly; no triangle spans the
-// discontinuity; every vertex lies on its surface (smoothing keeps planes).
+// band is filled with the far (plane) depth; no triangle spans the discontinuity; every
+// vertex lies on its surface (smoothing keeps planes). Then a hole on a ramp: linear.
 TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
   io::Intrinsics K;
   K.width = 64;
@@ -284,16 +285,27 @@ TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
       expected += (a == c && c == b) + (b == c && c == dd);
     }
   EXPECT_EQ(m.triangles.size(), expected);
+  // A hole on a slope is filled linearly, not with either side: a ramp along rows, 1 mm
+  // deeper per pixel (within `jump` across the gap), with a 3-px hole mid-row.
+  io::DepthImage ramp = d;
+  for (int v = 0; v < K.height; ++v)
+    for (int u = 0; u < K.width; ++u)
+      ramp.data[static_cast<std::size_t>(v) * K.width + u] = static_cast<std::uint16_t>(4800 + 8 * u);
+  for (int u = 30; u < 33; ++u) ramp.data[static_cast<std::size_t>(24) * K.width + u] = 0;
+  DepthSurfaceParams no_smoothing;  // so that the filled depths are the fill's
+  no_smoothing.smoothing_px = 0;
+  const TriangleMesh r = depth_surface_mesh(ramp, K, no_smoothing);
+  ASSERT_EQ(r.vertices.size(), ramp.data.size());
+  for (int u = 30; u < 33; ++u)
+    EXPECT_NEAR(r.vertices[static_cast<std::size_t>(24) * K.width + u].z(), 0.6 + 0.001 * u, 1e-6)
+        << u;
   d.data.assign(d.data.size(), 0);
   EXPECT_THROW((void)depth_surface_mesh(d, K), std::invalid_argument);
   DepthSurfaceParams bad;
   bad.smoothing_px = -1;
-  try {
-    (void)depth_surface_mesh(d, K, bad);
-    FAIL();
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("smoothing_px"), std::string::npos) << e.what();
-  }
+  const std::string e =
+      test::error_of<std::invalid_argument>([&] { (void)depth_surface_mesh(d, K, bad); });
+  EXPECT_NE(e.find("smoothing_px"), std::string::npos) << e;
 }
 
 }  // namespace

@@ -145,14 +145,9 @@ TEST(Occlusion, SensorRefusesAnEmptyWindow) {
   o.from_s = 2.0;
   o.to_s = 1.0;
   SensorParams p;
-  try {
-    Sensor s(p, ComponentGeometry{}, {Occluder{}, o});
-    FAIL();
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("occluder 1: from_s = 2.000000, to_s = 1.000000"),
-              std::string::npos)
-        << e.what();
-  }
+  const std::string e = test::error_of<std::invalid_argument>(
+      [&] { Sensor s(p, ComponentGeometry{}, {Occluder{}, o}); });
+  EXPECT_NE(e.find("occluder 1: from_s = 2.000000, to_s = 1.000000"), std::string::npos) << e;
 }
 
 TEST(Occlusion, ParamsValidateNamesTheField) {
@@ -161,12 +156,8 @@ TEST(Occlusion, ParamsValidateNamesTheField) {
   EXPECT_THROW(o.validate(), std::invalid_argument);
   o = {};
   o.to_s = o.from_s;
-  try {
-    o.validate();
-    FAIL();
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("occlusion.to_s"), std::string::npos);
-  }
+  const std::string e2 = test::error_of<std::invalid_argument>([&] { o.validate(); });
+  EXPECT_NE(e2.find("occlusion.to_s"), std::string::npos) << e2;
 }
 
 }  // namespace

@@ -390,7 +390,7 @@ TEST(Sensor, CorrelatedNoiseHasItsSigmaAndCorrelation) {
   SensorParams p = side_view(noise);
   BackgroundObject plate;
   plate.shape.half_extents = Eigen::Vector3d(2.0, 0.01, 2.0);
-  plate.X_WO.translation() = Eigen::Vector3d(0.25, 0.3, 0.5);  // 0.9 m from the camera
+  plate.X_WO.translation() = Eigen::Vector3d(0.25, 0.3, 0.5);  // its face 0.79 m from the camera
   Sensor sensor(p, ComponentGeometry{}, {}, {plate});
   std::vector<Eigen::Isometry3d> away(11, Eigen::Isometry3d(Eigen::Translation3d(0, 0, -10)));
   double s2 = 0, c1 = 0, c2 = 0;
@@ -532,12 +532,9 @@ TEST(Sensor, ChainOnlyRenderMatchesTheWholeFrameInsideItsBox) {
     EXPECT_GT(dropped_at_edge, plate_px / 4) << "its 2-px band should drop pixels in the box";
   }
   extent.margin_px = -1;
-  try {
-    (void)sensor->render(truth.X_WK, 0.0, 7, 3, extent);
-    FAIL();
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("margin_px = -1"), std::string::npos) << e.what();
-  }
+  const std::string e = test::error_of<std::invalid_argument>(
+      [&] { (void)sensor->render(truth.X_WK, 0.0, 7, 3, extent); });
+  EXPECT_NE(e.find("margin_px = -1"), std::string::npos) << e;
 }
 
 // Shadow culling skips shadow rays that cannot be blocked: by the moving bodies' and each

@@ -21,16 +21,6 @@ std::string slurp(const fs::path& p) {
   return ss.str();
 }
 
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "no error";
-}
-
 // A tiny grid: 3 x 2 cells of 2 frames, two modes per cell.
 SweepSpec tiny() {
   SweepSpec s;
@@ -59,31 +49,31 @@ TEST(SweepAxis, ParsesAndNamesBadArguments) {
   const SweepAxis a = parse_axis("noise.scale= 0, 0.5,1");
   EXPECT_EQ(a.key, "noise.scale");
   EXPECT_EQ(a.values, (std::vector<std::string>{"0", "0.5", "1"}));
-  EXPECT_EQ(error_of([] { (void)parse_axis("noise.scale"); }),
+  EXPECT_EQ(test::error_of([] { (void)parse_axis("noise.scale"); }),
             "--axis 'noise.scale': expected key=v1,v2,...");
-  EXPECT_EQ(error_of([] { (void)parse_axis("noise.scale=1,,2"); }),
+  EXPECT_EQ(test::error_of([] { (void)parse_axis("noise.scale=1,,2"); }),
             "--axis 'noise.scale=1,,2': empty value");
-  EXPECT_EQ(error_of([] { (void)parse_axis("=1"); }), "--axis '=1': expected key=v1,v2,...");
+  EXPECT_EQ(test::error_of([] { (void)parse_axis("=1"); }), "--axis '=1': expected key=v1,v2,...");
 }
 
 TEST(SweepSpec, ValidateNamesTheProblem) {
   SweepSpec s = tiny();
   s.axes.push_back(parse_axis("noise.scale=3"));
-  EXPECT_EQ(error_of([&] { s.validate(); }), "sweep: axis 'noise.scale' given twice");
+  EXPECT_EQ(test::error_of([&] { s.validate(); }), "sweep: axis 'noise.scale' given twice");
   s = tiny();
   s.axes.clear();
-  EXPECT_EQ(error_of([&] { s.validate(); }), "sweep: no axis (give --axis or --grid)");
+  EXPECT_EQ(test::error_of([&] { s.validate(); }), "sweep: no axis (give --axis or --grid)");
   s = tiny();
   s.scene.clear();
-  EXPECT_EQ(error_of([&] { s.validate(); }), "sweep: no scene (give --scene or an axis 'scene')");
+  EXPECT_EQ(test::error_of([&] { s.validate(); }), "sweep: no scene (give --scene or an axis 'scene')");
   s = tiny();
   s.axes = {parse_axis("seed=1,2"), parse_axis("mode=paper")};
-  EXPECT_EQ(error_of([&] { s.validate(); }), "sweep: axis 'mode' clashes with a column name");
+  EXPECT_EQ(test::error_of([&] { s.validate(); }), "sweep: axis 'mode' clashes with a column name");
   s = tiny();
   s.axes = {parse_axis("a=1,2,3,4,5,6,7,8,9,10"), parse_axis("b=1,2,3,4,5,6,7,8,9,10"),
             parse_axis("c=1,2,3,4,5,6,7,8,9,10"), parse_axis("d=1,2,3,4,5,6,7,8,9,10"),
             parse_axis("e=1,2,3,4,5,6,7,8,9,10"), parse_axis("f=1,2,3,4,5,6,7,8,9,10,11")};
-  EXPECT_NE(error_of([&] { s.validate(); }).find("at most 1000000"), std::string::npos);
+  EXPECT_NE(test::error_of([&] { s.validate(); }).find("at most 1000000"), std::string::npos);
 }
 
 TEST(SweepCell, RowMajorOverridesAndSeedsFromTheCellsValues) {
@@ -114,11 +104,11 @@ TEST(SweepGrid, ReadsAxesAndNamesTheLineOfAProblem) {
   EXPECT_EQ(axes[1].key, "seed");
   EXPECT_EQ(axes[1].values, (std::vector<std::string>{"1", "2", "3"}));
   std::ofstream(d / "bad.yaml") << "axes:\n  - noise.scale: [0, 0.5]\n  - seed: 3\n";
-  EXPECT_EQ(error_of([&] { (void)read_grid(d / "bad.yaml"); }),
+  EXPECT_EQ(test::error_of([&] { (void)read_grid(d / "bad.yaml"); }),
             (d / "bad.yaml").string() + ":3: seed: expected a non-empty list of values");
   std::ofstream(d / "typo.yaml") << "axis:\n  - seed: [1]\n";
-  EXPECT_NE(error_of([&] { (void)read_grid(d / "typo.yaml"); }).find("'axes'"), std::string::npos);
-  EXPECT_NE(error_of([&] { (void)read_grid(d / "none.yaml"); }).find("cannot be read"),
+  EXPECT_NE(test::error_of([&] { (void)read_grid(d / "typo.yaml"); }).find("'axes'"), std::string::npos);
+  EXPECT_NE(test::error_of([&] { (void)read_grid(d / "none.yaml"); }).find("cannot be read"),
             std::string::npos);
 }
 
@@ -154,17 +144,17 @@ TEST_F(Sweep, MergeNamesMissingAndDoubledCells) {
   const SweepSpec spec = tiny();
   run_shard(dir, spec, 0, 3);  // cells 0, 3
   run_shard(dir, spec, 1, 3);  // cells 1, 4
-  std::string e = error_of([&] { (void)merge_sweep(dir); });
+  std::string e = test::error_of([&] { (void)merge_sweep(dir); });
   EXPECT_NE(e.find("2 of 6 cells missing (2, 5)"), std::string::npos) << e;
   EXPECT_FALSE(fs::exists(dir / "cells.csv"));
   run_shard(dir, spec, 2, 3);
   run_shard(dir, spec, 0, 2);  // cells 0, 2, 4 again
-  e = error_of([&] { (void)merge_sweep(dir); });
+  e = test::error_of([&] { (void)merge_sweep(dir); });
   EXPECT_NE(e.find("3 cells doubled (0, 2, 4)"), std::string::npos) << e;
   EXPECT_FALSE(fs::exists(dir / "cells.csv"));
   fs::remove(dir / shard_file_name(0, 2));
   EXPECT_NO_THROW((void)merge_sweep(dir));
-  EXPECT_NE(error_of([&] { (void)merge_sweep(dir / "nothing"); }).find("no sweep manifest"),
+  EXPECT_NE(test::error_of([&] { (void)merge_sweep(dir / "nothing"); }).find("no sweep manifest"),
             std::string::npos);
 }
 
@@ -182,14 +172,14 @@ TEST_F(Sweep, CompleteShardsAreRecognizedAndOthersAreNot) {
   // Another grid in the same directory is refused, naming what differs.
   SweepSpec other = spec;
   other.frames = 3;
-  const std::string e = error_of([&] { write_manifest(dir, other); });
+  const std::string e = test::error_of([&] { write_manifest(dir, other); });
   EXPECT_NE(e.find("describes another sweep: frames is 2, this run has 3"), std::string::npos) << e;
 }
 
 TEST_F(Sweep, BadSceneKeysInACellAreNamed) {
   SweepSpec spec = tiny();
   spec.axes = {parse_axis("noise.scael=1,2")};
-  const std::string e = error_of([&] { (void)run_cell(spec, 0, 0); });
+  const std::string e = test::error_of([&] { (void)run_cell(spec, 0, 0); });
   EXPECT_NE(e.find("--set noise.scael=1: noise.scael: unknown key"), std::string::npos) << e;
 }
 

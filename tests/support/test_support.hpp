@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -100,6 +101,23 @@ inline TrackerParams params_for(const BackendCase& c) {
   p.opencl.accumulation = c.accumulation;
   return p;
 }
+
+/// The message of the E that f() throws; "no error" when it throws nothing. Any other
+/// exception propagates, so the test fails on it.
+template <class E = std::exception, class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+/// A tracker's one-component slip after a re-initialization (node j on ball j - 1; see
+/// docs/robustness.md): the worst frame measures 44-48 mm; 60 mm, which a slip of two
+/// components would break [m].
+inline constexpr double kSlipBand = 0.060;
 
 /// The scratch directories this test process made, removed when it exits (kept when
 /// LINKSIGHT_KEEP_SCRATCH is set, to look at after a failure).

@@ -43,6 +43,23 @@ CliRun run(const std::string& args, const fs::path& dir, const std::string& env 
   return r;
 }
 
+// The real SR305 recording (tests/data/sr305-hand).
+const fs::path kSr305 = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
+
+// The four figures calibrate-noise and fidelity draw, each a real PNG, in `dir`.
+void expect_stats_figures(const fs::path& dir) {
+  for (const char* fig : {"sigma_depth.png", "sigma_angle.png", "shadow_band.png", "holes.png"})
+    EXPECT_GT(fs::exists(dir / fig) ? fs::file_size(dir / fig) : 0u, 1000u) << dir / fig;
+}
+
+// The row of `fidelity.json` named `statistic`; fails the test when there is none.
+nlohmann::json fidelity_row(const nlohmann::json& j, const std::string& statistic) {
+  for (const auto& row : j["rows"])
+    if (row["statistic"] == statistic) return row;
+  ADD_FAILURE() << "no row '" << statistic << "'";
+  return nlohmann::json{{"real", nullptr}, {"sim", nullptr}};
+}
+
 // A valid 8-bit grayscale PNG (1x1), written byte by byte: not a depth image.
 void write_png8(const fs::path& path) {
   const unsigned char png8[] = {
@@ -523,8 +540,7 @@ TEST_F(Cli, SweepBadInputIsNamed) {
 // calibrate-noise on the real SR305 frames: a report, and a noise: block that a scene
 // accepts as it is (loaded here, and its fitted values reach the scene's noise).
 TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
-  const fs::path real = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
-  fs::create_directories(dir);
+  const fs::path& real = kSr305;
   const fs::path yaml = dir / "noise.yaml";
   const CliRun r = run("calibrate-noise --input " + (real / "frames").string() +
                            " --intrinsics " + (real / "intrinsics.json").string() + " --out " +
@@ -550,33 +566,36 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   EXPECT_GT(scene.noise.axial.correlation_px, 1.0);
   EXPECT_NEAR(scene.noise.edges.flying_position, j["flying_position"].get<double>(), 1e-8);
   EXPECT_NE(r.out.find("shape_mm"), std::string::npos) << "the shape correction is reported";
-  for (const char* fig : {"sigma_depth.png", "sigma_angle.png", "shadow_band.png", "holes.png"}) {
-    const fs::path f = dir / "report" / "figures" / fig;
-    EXPECT_GT(fs::exists(f) ? fs::file_size(f) : 0u, 1000u) << fig;
-  }
+  expect_stats_figures(dir / "report" / "figures");
   // The sr300 preset is this command's output on these frames, rounded (docs/sensor.md):
   // a fit that moves away from it means the preset is stale.
   const sim::NoiseParams preset = sim::NoiseParams::sr300();
-  auto near = [](double fitted, double kept, double rel, const char* what) {
-    EXPECT_NEAR(fitted, kept, rel * std::abs(kept) + 1e-12) << what;
+  constexpr double kPresetRelTol = 0.05;
+  const sim::NoiseParams& fitted = scene.noise;
+  const struct {
+    const char* what;
+    double fitted, preset;
+  } terms[] = {
+      {"axial.a", fitted.axial.a, preset.axial.a},
+      {"axial.c", fitted.axial.c, preset.axial.c},
+      {"axial.k_theta", fitted.axial.k_theta, preset.axial.k_theta},
+      {"axial.correlation_px", fitted.axial.correlation_px, preset.axial.correlation_px},
+      {"shadow.baseline", fitted.shadow.baseline, preset.shadow.baseline},
+      {"edges.band_p1", fitted.edges.band_p1, preset.edges.band_p1},
+      {"edges.band_p2", fitted.edges.band_p2, preset.edges.band_p2},
+      {"edges.p_flying", fitted.edges.p_flying, preset.edges.p_flying},
+      {"edges.flying_position", fitted.edges.flying_position, preset.edges.flying_position},
+      {"edges.flying_spread", fitted.edges.flying_spread, preset.edges.flying_spread},
+      {"dropouts.hole_rate", fitted.dropouts.hole_rate, preset.dropouts.hole_rate},
+      {"dropouts.hole_median_px", fitted.dropouts.hole_median_px, preset.dropouts.hole_median_px},
+      {"dropouts.hole_p90_px", fitted.dropouts.hole_p90_px, preset.dropouts.hole_p90_px},
   };
-  near(scene.noise.axial.a, preset.axial.a, 0.05, "axial.a");
-  near(scene.noise.axial.c, preset.axial.c, 0.05, "axial.c");
-  near(scene.noise.axial.k_theta, preset.axial.k_theta, 0.05, "axial.k_theta");
-  near(scene.noise.axial.correlation_px, preset.axial.correlation_px, 0.05, "correlation_px");
-  near(scene.noise.shadow.baseline, preset.shadow.baseline, 0.05, "shadow.baseline");
-  near(scene.noise.edges.band_p1, preset.edges.band_p1, 0.05, "edges.band_p1");
-  near(scene.noise.edges.band_p2, preset.edges.band_p2, 0.05, "edges.band_p2");
-  near(scene.noise.edges.p_flying, preset.edges.p_flying, 0.05, "edges.p_flying");
-  near(scene.noise.edges.flying_position, preset.edges.flying_position, 0.05, "flying_position");
-  near(scene.noise.edges.flying_spread, preset.edges.flying_spread, 0.05, "flying_spread");
-  near(scene.noise.dropouts.hole_rate, preset.dropouts.hole_rate, 0.05, "dropouts.hole_rate");
-  near(scene.noise.dropouts.hole_median_px, preset.dropouts.hole_median_px, 0.05, "hole_median_px");
-  near(scene.noise.dropouts.hole_p90_px, preset.dropouts.hole_p90_px, 0.05, "hole_p90_px");
+  for (const auto& t : terms)
+    EXPECT_NEAR(t.fitted, t.preset, kPresetRelTol * std::abs(t.preset)) << t.what;
 }
 
 TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
-  const fs::path real = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
+  const fs::path& real = kSr305;
   fs::create_directories(dir / "in");
   const std::string k = " --intrinsics " + (real / "intrinsics.json").string();
   // No valid pixels.
@@ -606,8 +625,7 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
 // fidelity: the real frames against a rendered recording; every statistic a row with its
 // ratio, the overlaid figures; bad input named, an existing output kept unless --force.
 TEST_F(Cli, FidelityComparesRealAndSimulatedRecordings) {
-  const fs::path real = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
-  fs::create_directories(dir);
+  const fs::path& real = kSr305;
   std::ofstream(dir / "scene.yaml") << R"(duration_s: 1.0
 camera:
   look_at: {eye_m: [0.0, -0.7, 0.5], target_m: [0.0, 0.0, 0.5], up: [0, 0, 1]}
@@ -629,17 +647,11 @@ background:
   EXPECT_NE(r.out.find("baseline_mm"), std::string::npos) << r.out;
   std::ifstream in(out / "fidelity.json");
   const nlohmann::json j = nlohmann::json::parse(in);
-  bool side = false, flying = false;
-  for (const auto& row : j["rows"]) {
-    if (row["statistic"] == "projector side (-1 left, +1 right)") {
-      side = true;
-      EXPECT_EQ(row["real"], -1.0);  // the SR305's projector is image-left
-      EXPECT_EQ(row["sim"], 1.0);    // the scene sets +50 mm: image-right
-    }
-    flying = flying || row["statistic"] == "flying rate";
-  }
-  EXPECT_TRUE(side);
-  EXPECT_TRUE(flying);
+  const nlohmann::json side = fidelity_row(j, "projector side (-1 left, +1 right)");
+  EXPECT_EQ(side["real"], -1.0);  // the SR305's projector is image-left
+  EXPECT_EQ(side["sim"], 1.0);    // the scene sets +50 mm: image-right
+  (void)fidelity_row(j, "flying rate");
+  expect_stats_figures(out / "figures");
   // --rerender: the real frames' own surfaces through the simulated camera (the sr300
   // preset): the projector comes out where the preset puts it, image-left.
   const fs::path out2 = dir / "rerender";
@@ -648,15 +660,7 @@ background:
   std::ifstream in2(out2 / "fidelity.json");
   const nlohmann::json j2 = nlohmann::json::parse(in2);
   EXPECT_EQ(j2["sim"], "rerender");
-  for (const auto& row : j2["rows"]) {
-    if (row["statistic"] == "projector side (-1 left, +1 right)") {
-      EXPECT_EQ(row["sim"], -1.0);
-    }
-  }
-  for (const char* fig : {"sigma_depth.png", "sigma_angle.png", "shadow_band.png", "holes.png"})
-    EXPECT_GT(fs::exists(out / "figures" / fig) ? fs::file_size(out / "figures" / fig) : 0u,
-              1000u)
-        << fig;
+  EXPECT_EQ(fidelity_row(j2, "projector side (-1 left, +1 right)")["sim"], -1.0);
   // An existing output is kept unless --force; a missing recording is named.
   r = run("fidelity --real " + real.string() + " --sim " + (dir / "sim").string() +
               " --no-figures --out " + out.string(),

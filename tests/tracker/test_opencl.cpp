@@ -20,15 +20,6 @@ Cloud cloud(std::uint64_t seed, int samples = 3000) {
   return sim::sample_visible_surface(test::test_chain(sim::ChainShape::c_shape), {}, s);
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "no error";
-}
-
 TEST(OpenCL, ListsAtLeastOneDeviceWithWhatTheBackEndNeeds) {
   const auto devices = opencl_devices();
   ASSERT_FALSE(devices.empty()) << "no OpenCL device: tools/setup.sh installs pocl-opencl-icd";
@@ -98,7 +89,7 @@ TEST(OpenCL, TwoTrackersAliveAtOnce) {
 }
 
 TEST(OpenCL, BuildFailureCarriesTheBuildLog) {
-  const std::string e = error_of(
+  const std::string e = test::error_of(
       [] { check_opencl_build("kernel void k(global int* a) { a[0] = undeclared_name; }"); });
   EXPECT_NE(e.find("kernel build failed"), std::string::npos) << e;
   EXPECT_NE(e.find("undeclared_name"), std::string::npos) << e;  // the compiler's own words
@@ -108,12 +99,12 @@ TEST(OpenCL, BuildFailureCarriesTheBuildLog) {
 TEST(OpenCL, SelectionErrorsSayWhatExists) {
   OpenCLOptions o;
   o.device = "no-such-device-xyz";
-  const std::string none = error_of([&] { (void)make_backend(BackendKind::opencl, 0, o); });
+  const std::string none = test::error_of([&] { (void)make_backend(BackendKind::opencl, 0, o); });
   EXPECT_NE(none.find("no device matches 'no-such-device-xyz'"), std::string::npos) << none;
   EXPECT_NE(none.find(opencl_devices().front().name), std::string::npos) << none;
   OpenCLOptions p;
   p.platform = 99;
-  const std::string platform = error_of([&] { (void)make_backend(BackendKind::opencl, 0, p); });
+  const std::string platform = test::error_of([&] { (void)make_backend(BackendKind::opencl, 0, p); });
   EXPECT_NE(platform.find("--cl-platform 99 does not exist"), std::string::npos) << platform;
   OpenCLOptions w;
   w.work_group_size = 5000;
