@@ -636,10 +636,11 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
       } catch (const std::invalid_argument& e) {
         // "occlusion.gap_m = ...: ..." names its own key; the rest are about the block.
         const std::string what = e.what();
-        if (what.rfind("occlusion.", 0) == 0) {
-          const std::string key = what.substr(0, what.find(' '));
+        const std::size_t eq = what.find(" = ");
+        if (what.rfind("occlusion.", 0) == 0 && eq != std::string::npos) {
+          const std::string key = what.substr(0, eq);
           const YAML::Node at = o[key.substr(10)];
-          r.fail(at ? at : o, key, what.substr(key.size() + 3));  // "<value>: <rule>"
+          r.fail(at ? at : o, key, what.substr(eq + 3));  // "<value>: <rule>"
         }
         r.fail(o, "occlusion", what);
       }
