@@ -14,7 +14,7 @@ void BM_SweepCells(benchmark::State& state) {
   SweepSpec spec;
   spec.scene = std::string(LINKSIGHT_SCENE_DIR) + "/robustness_static.yaml";
   spec.axes = {{"noise.scale", {"0", "1", "4"}}, {"occlusion.fraction", {"0", "0.3"}}};
-  spec.modes = {TrackerMode::paper, TrackerMode::paper_centred, TrackerMode::accelerated_som};
+  spec.modes = {parse_mode("paper"), parse_mode("paper-centred"), parse_mode("accelerated-som")};
   spec.frames = static_cast<int>(state.range(1));
   const auto cells = static_cast<std::size_t>(state.range(0));
   std::int64_t done = 0;

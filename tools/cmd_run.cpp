@@ -269,8 +269,8 @@ Runner add_run(CLI::App& app) {
                  "override a scene key: key.path=value (repeatable), e.g. --set camera.fps=60 "
                  "--set 'occluders[0].reflectance=0.5'");
   app.add_option("--compare", o->compare,
-                 "tracker modes to run on the same frames, comma-separated: "
-                 "paper,paper-centred,accelerated-som (default: the scene's tracker.mode)");
+                 "tracker modes to run on the same frames, comma-separated, of: " +
+                     mode_choices() + " (default: the scene's tracker.mode)");
   app.add_option("--frames", o->frames, "camera frames (0: the scene's duration)")
       ->capture_default_str();
   app.add_option("--threads", o->threads, "OpenMP threads for the sensor (0: default)")

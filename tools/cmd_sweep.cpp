@@ -182,8 +182,8 @@ Runner add_sweep(CLI::App& app) {
   app.add_option("--grid", o->grid, "YAML file with 'axes:', a list of {key: [values]}");
   app.add_option("--set", o->set, "key.path=value applied to every cell (repeatable)")->take_all();
   app.add_option("--compare", o->compare,
-                 "tracker modes run on each cell's frames, e.g. paper,paper-centred "
-                 "(default: the scene's tracker.mode)");
+                 "tracker modes run on each cell's frames, comma-separated, of: " +
+                     mode_choices() + " (default: the scene's tracker.mode)");
   app.add_option("--out", o->out, "sweep directory (sweep.json, shard files, cells.csv, figures/)");
   app.add_option("--frames", o->frames, "camera frames per cell (default: the scene's duration)");
   app.add_option("--threads", o->threads, "sensor threads (0: OpenMP default)");

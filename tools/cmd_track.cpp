@@ -49,11 +49,11 @@ struct TrackOptions {
 int run_track(const TrackOptions& o) {
   TrackerParams p;
   p.mode = parse_mode(o.mode);
-  p.init.method = parse_init(o.init);
+  p.policy.lsq_init.method = parse_init(o.init);
   if (o.som_init == "straight-line")
-    p.som_init = SomInit::straight_line;
+    p.policy.som_init.method = SomInit::straight_line;
   else if (o.som_init == "random-sample")
-    p.som_init = SomInit::random_sample;
+    p.policy.som_init.method = SomInit::random_sample;
   else
     throw std::invalid_argument("--som-init: unknown value '" + o.som_init + "'");
   if (o.backend == "auto") {
@@ -84,10 +84,10 @@ int run_track(const TrackOptions& o) {
   p.threads = o.threads;
   p.nodes = o.nodes;
   p.iterations = o.iterations;
-  p.init.poly_order = o.poly_order;
-  p.init.pitch = o.pitch;
+  p.policy.lsq_init.poly_order = o.poly_order;
+  p.policy.lsq_init.pitch = o.pitch;
   p.geometry.pitch = o.pitch;
-  p.seed = o.seed;
+  p.policy.som_init.seed = o.seed;
   p.validate();
   if (o.lost_frames != "error" && o.lost_frames != "keep") {
     throw std::invalid_argument("--lost-frames: unknown value '" + o.lost_frames +
@@ -197,9 +197,9 @@ int run_track(const TrackOptions& o) {
         {"threads", p.threads},
         {"nodes", p.nodes},
         {"iterations", p.iterations},
-        {"poly_order", p.init.poly_order},
-        {"pitch_m", p.init.pitch},
-        {"seed", p.seed}}}};
+        {"poly_order", p.policy.lsq_init.poly_order},
+        {"pitch_m", p.policy.lsq_init.pitch},
+        {"seed", p.policy.som_init.seed}}}};
   // File names need not be UTF-8: replace what JSON cannot hold rather than fail.
   staged.open(fs::path(o.out) / "summary.json")
       << summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
@@ -224,7 +224,7 @@ Runner add_track(CLI::App& app) {
       ->required();
   app.add_option("--intrinsics", o->intrinsics,
                  "intrinsics.json for depth PNGs (default: beside the frames or in their parent)");
-  app.add_option("--mode", o->mode, "paper | accelerated-som | paper-centred")->capture_default_str();
+  app.add_option("--mode", o->mode, mode_choices())->capture_default_str();
   app.add_option("--init", o->init, "LSQ init of paper mode: paper | pca")->capture_default_str();
   app.add_option("--som-init", o->som_init,
                  "init of accelerated-som mode: straight-line | random-sample")

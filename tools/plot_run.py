@@ -14,6 +14,7 @@ OUT_DIR/figures/:
 Needs Debian's python3-matplotlib (numpy and PIL come with it).
 """
 import csv
+import hashlib
 import json
 import os
 import sys
@@ -25,7 +26,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
-COLOURS = {"paper": "tab:blue", "accelerated-som": "tab:orange", "paper-centred": "tab:green"}
+# Mode names come from the data; each gets a colour from its name alone, so a mode keeps
+# its colour in every figure whatever else is compared (the first byte of the name's SHA-1
+# picks one of matplotlib's ten; today's modes get different ones).
+PALETTE = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
+           "tab:pink", "tab:gray", "tab:olive", "tab:cyan"]
+
+
+def mode_colour(mode):
+    return PALETTE[hashlib.sha1(mode.encode()).digest()[0] % len(PALETTE)]
+
+
 EVENT_COLOURS = {"occlusion": "0.85", "fast_motion": "mistyrose"}
 
 
@@ -70,7 +81,7 @@ def plot_lines(frames, summary, column, ylabel, title, path, log=False):
     for mode, rows in frames.items():
         t = np.array([number(r["t_s"]) for r in rows])
         y = np.array([number(r[column]) for r in rows])
-        ax.plot(t, y, label=mode, color=COLOURS.get(mode), linewidth=1.2)
+        ax.plot(t, y, label=mode, color=mode_colour(mode), linewidth=1.2)
     ax.set_xlabel("time [s]")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
@@ -106,7 +117,7 @@ def plot_overlays(run_dir, out_dir, summary):
                 ax.plot(pts[:, 0], pts[:, 1], "o", mfc="none", mec="white", ms=8, mew=1.5,
                         label="true nodes")
             else:
-                ax.plot(pts[:, 0], pts[:, 1], "x-", color=COLOURS.get(name, "k"), ms=6,
+                ax.plot(pts[:, 0], pts[:, 1], "x-", color=mode_colour(name), ms=6,
                         lw=1.0, label=name + " estimate")
         ax.set_xlabel("u [px]")
         ax.set_ylabel("v [px]")

@@ -471,11 +471,13 @@ void read_tracker(const Reader& r, const YAML::Node& n, TrackerParams& p) {
   r.only(n, w,
          {"mode", "init", "som_init", "backend", "threads", "iterations", "poly_order",
           "max_points", "tolerance_m"});
+  const std::vector<std::string> modes = mode_names();
   p.mode = parse_mode(r.choice(n, w, "mode", std::string(to_string(p.mode)),
-                               {"paper", "accelerated-som", "paper-centred"}));
-  p.init.method = parse_init(r.choice(n, w, "init", p.init.method == InitMethod::pca ? "pca" : "paper",
-                                      {"paper", "pca"}));
-  p.som_init = r.choice(n, w, "som_init", "straight-line", {"straight-line", "random-sample"}) ==
+                               std::set<std::string>(modes.begin(), modes.end())));
+  InitParams& lsq = p.policy.lsq_init;
+  lsq.method = parse_init(r.choice(n, w, "init", lsq.method == InitMethod::pca ? "pca" : "paper",
+                                   {"paper", "pca"}));
+  p.policy.som_init.method = r.choice(n, w, "som_init", "straight-line", {"straight-line", "random-sample"}) ==
                        "straight-line"
                    ? SomInit::straight_line
                    : SomInit::random_sample;
@@ -483,9 +485,9 @@ void read_tracker(const Reader& r, const YAML::Node& n, TrackerParams& p) {
                                      {"serial", "openmp", "opencl"}));
   p.threads = static_cast<int>(r.number(n, w, "threads", p.threads, 0, kMaxThreads));
   p.iterations = static_cast<int>(r.number(n, w, "iterations", p.iterations, 1, kMaxIterations));
-  p.init.poly_order = static_cast<int>(r.number(n, w, "poly_order", p.init.poly_order, 1, 9));
-  p.init.max_points =
-      static_cast<std::size_t>(r.number(n, w, "max_points", static_cast<double>(p.init.max_points), 0, 1e7));
+  lsq.poly_order = static_cast<int>(r.number(n, w, "poly_order", lsq.poly_order, 1, 9));
+  lsq.max_points =
+      static_cast<std::size_t>(r.number(n, w, "max_points", static_cast<double>(lsq.max_points), 0, 1e7));
   p.tolerance = r.number(n, w, "tolerance_m", p.tolerance, 0, 1);
 }
 
@@ -648,8 +650,8 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
   }
   s.tracker.geometry = s.chain.geometry;
   s.tracker.nodes = s.chain.geometry.count + 1;
-  s.tracker.init.pitch = s.chain.geometry.pitch;
-  s.tracker.seed = derive_seed(s.seed, "tracker");
+  s.tracker.policy.lsq_init.pitch = s.chain.geometry.pitch;
+  s.tracker.policy.som_init.seed = derive_seed(s.seed, "tracker");
   if (const YAML::Node t = root["tracker"]) read_tracker(r, t, s.tracker);
   try {
     s.chain.validate();

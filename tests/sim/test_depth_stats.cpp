@@ -62,7 +62,7 @@ background:
   K = scene.camera.intrinsics;
   EpisodeOptions o;
   o.frames = frames;
-  o.modes = {TrackerMode::paper};
+  o.modes = {parse_mode("paper")};
   Episode e(scene, o);
   std::vector<io::DepthImage> out;
   while (e.done() < e.frames()) out.push_back(e.step().image->depth);

@@ -29,7 +29,7 @@ TEST(Episode, EveryShippedSceneLoadsAndRunsItsFirstFrames) {
     const Scene scene = load_scene(kScenes / (std::string(name) + ".yaml"));
     EpisodeOptions o;
     o.frames = 3;
-    o.modes = {TrackerMode::paper, TrackerMode::accelerated_som};
+    o.modes = {parse_mode("paper"), parse_mode("accelerated-som")};
     Episode e(scene, o);
     ASSERT_EQ(e.frames(), 3);
     for (int f = 0; f < 3; ++f) {
@@ -84,7 +84,7 @@ TEST(Episode, PaperCentredRemovesTheSurfaceBias) {
   const Scene scene = load_scene(kScenes / "static.yaml");
   EpisodeOptions o;
   o.frames = 30;
-  o.modes = {TrackerMode::paper, TrackerMode::paper_centred};
+  o.modes = {parse_mode("paper"), parse_mode("paper-centred")};
   Episode e(scene, o);
   while (e.done() < e.frames()) (void)e.step();
   const auto s = e.summaries();
@@ -100,7 +100,7 @@ TEST(Episode, PaperCentredRemovesTheSurfaceBias) {
 TEST(Episode, FastMotionBaselineNeverBeatsPaperMode) {
   const Scene scene = load_scene(kScenes / "fast_motion.yaml");
   EpisodeOptions o;
-  o.modes = {TrackerMode::paper, TrackerMode::accelerated_som};
+  o.modes = {parse_mode("paper"), parse_mode("accelerated-som")};
   Episode e(scene, o);
   bool jumped = false;
   while (e.done() < e.frames()) {
@@ -174,7 +174,7 @@ TEST(Episode, ChainOnlyImagesGiveTheSameCloudsAndScores) {
 TEST(Episode, BadOptionsAreNamed) {
   const Scene scene = load_scene(kScenes / "static.yaml");
   EpisodeOptions o;
-  o.modes = {TrackerMode::paper, TrackerMode::paper};
+  o.modes = {parse_mode("paper"), parse_mode("paper")};
   try {
     Episode e(scene, o);
     FAIL();
@@ -212,13 +212,13 @@ TEST_F(Overrides, SetReachesScalarsNestedKeysListsAndVectors) {
   EXPECT_EQ(s.seed, 99u);
   EXPECT_EQ(s.occluders[1].reflectance, 0.25);
   EXPECT_EQ(s.occluders[1].shape.half_extents, Eigen::Vector3d(0.1, 0.01, 0.05));
-  EXPECT_EQ(s.tracker.mode, TrackerMode::accelerated_som);
+  EXPECT_EQ(s.tracker.mode, parse_mode("accelerated-som"));
   EXPECT_EQ(s.tracker.iterations, 6);
   EXPECT_FALSE(s.world.gravity);
   // The file alone is unchanged.
   const Scene plain = load_scene(kScenes / "occluder_pass.yaml");
   EXPECT_EQ(plain.camera.fps, 30);
-  EXPECT_EQ(plain.tracker.mode, TrackerMode::paper);
+  EXPECT_EQ(plain.tracker.mode, parse_mode("paper"));
   // A key the file does not have is created.
   EXPECT_EQ(load_scene(kScenes / "static.yaml", {"segmentation.leakage=0.3"}).segmentation.leakage,
             0.3);
@@ -269,8 +269,8 @@ TEST_F(Overrides, TrackerKeysInAFileNameTheirLine) {
   std::ofstream(p) << "tracker:\n  iterations: 7\n  init: paper\n  som_init: random-sample\n";
   const Scene s = load_scene(p);
   EXPECT_EQ(s.tracker.iterations, 7);
-  EXPECT_EQ(s.tracker.init.method, InitMethod::paper);
-  EXPECT_EQ(s.tracker.som_init, SomInit::random_sample);
+  EXPECT_EQ(s.tracker.policy.lsq_init.method, InitMethod::paper);
+  EXPECT_EQ(s.tracker.policy.som_init.method, SomInit::random_sample);
   EXPECT_EQ(s.tracker.nodes, s.chain.geometry.count + 1);
 }
 

@@ -26,7 +26,7 @@ SweepSpec tiny() {
   SweepSpec s;
   s.scene = kScenes / "static.yaml";
   s.axes = {parse_axis("noise.scale=0,1,2"), parse_axis("tracker.iterations=2,4")};
-  s.modes = {TrackerMode::paper, TrackerMode::paper_centred};
+  s.modes = {parse_mode("paper"), parse_mode("paper-centred")};
   s.frames = 2;
   return s;
 }

@@ -26,22 +26,11 @@ void TrackerParams::validate() const {
   if (!(tolerance >= 0.0 && std::isfinite(tolerance))) {
     bad("tolerance", std::to_string(tolerance), "must be a finite value >= 0");
   }
-  init.validate();
+  policy.validate();
   geometry.validate();
   opencl.validate();
 }
 
-std::string_view to_string(TrackerMode mode) {
-  switch (mode) {
-    case TrackerMode::paper:
-      return "paper";
-    case TrackerMode::accelerated_som:
-      return "accelerated-som";
-    case TrackerMode::paper_centred:
-      return "paper-centred";
-  }
-  return "unknown";
-}
 std::string_view to_string(InitReason r) {
   switch (r) {
     case InitReason::none:
@@ -68,36 +57,24 @@ std::string_view to_string(LostReason r) {
   }
   return "unknown";
 }
-TrackerMode parse_mode(std::string_view name) {
-  if (name == "paper") return TrackerMode::paper;
-  if (name == "accelerated-som") return TrackerMode::accelerated_som;
-  if (name == "paper-centred") return TrackerMode::paper_centred;
-  throw std::invalid_argument("unknown mode '" + std::string(name) +
-                              "' (expected paper, accelerated-som or paper-centred)");
-}
 InitMethod parse_init(std::string_view name) {
   if (name == "paper") return InitMethod::paper;
   if (name == "pca") return InitMethod::pca;
   throw std::invalid_argument("unknown init '" + std::string(name) + "' (expected paper or pca)");
 }
 
-namespace {
-// The frame's output from the SOM's nodes (which stay on the surface: the next frame's
-// association starts from them, as in the paper).
-Nodes output_nodes(const Nodes& som, const TrackerParams& p) {
-  if (p.mode != TrackerMode::paper_centred) return som;
-  Nodes out = som;
-  const double offset = kCentreOffset * p.geometry.ball_radius;
-  for (Eigen::Vector3d& q : out) {
-    const double d = q.norm();  // the camera sits at the origin of the cloud's frame
-    if (d > 0) q *= (d + offset) / d;
-  }
-  return out;
+void PolicyParams::validate() const {
+  lsq_init.validate();
+  som_init.validate();
+  centre_offset.validate();
 }
-}  // namespace
 
 struct Tracker::State {
   std::unique_ptr<Backend> backend;
+  std::unique_ptr<InitPolicy> init;
+  std::unique_ptr<UpdatePolicy> update;
+  std::unique_ptr<ReinitTrigger> reinit;
+  std::unique_ptr<OutputPolicy> output;
   std::vector<float> x, y, z;  // finite points of the current frame (SoA)
   bool has_association = false;
   std::vector<float> q;  // nodes as float xyz for the kernels
@@ -106,10 +83,16 @@ struct Tracker::State {
   bool has_previous = false;
 };
 
-Tracker::Tracker(const TrackerParams& params) : params_(params) {
+Tracker::Tracker(const TrackerParams& params) : Tracker(params, params.mode.spec()) {}
+
+Tracker::Tracker(const TrackerParams& params, const ModeSpec& mode) : params_(params) {
   params_.validate();
   state_ = std::make_unique<State>();
   state_->backend = make_backend(params_.backend, params_.threads, params_.opencl);
+  state_->init = mode.init.make(params_);
+  state_->update = mode.update.make(params_);
+  state_->reinit = mode.reinit.make(params_);
+  state_->output = mode.output.make(params_);
   state_->q.resize(3 * static_cast<std::size_t>(params_.nodes));
 }
 Tracker::~Tracker() = default;
@@ -171,7 +154,7 @@ FrameResult Tracker::step(const Cloud& cloud) {
   if (r.lost_reason != LostReason::none) {
     // A lost frame leaves the state alone: the next frame continues from the last output.
     r.lost = true;
-    r.nodes = output_nodes(s.nodes, params_);
+    r.nodes = s.output->output(s.nodes);
     r.counts.assign(static_cast<std::size_t>(m), 0);
     r.sdf_error = std::numeric_limits<double>::quiet_NaN();
     s.has_association = false;
@@ -181,11 +164,9 @@ FrameResult Tracker::step(const Cloud& cloud) {
 
   const PointsView view{{s.x.data(), n}, {s.y.data(), n}, {s.z.data(), n}};
   s.backend->set_points(view);  // one upload per frame
-  const bool paper = params_.mode != TrackerMode::accelerated_som;
   bool initialized_now = false;
   if (!s.has_previous) {
-    s.nodes =
-        paper ? lsq_init(view, m, params_.init) : som_init(view, m, params_.som_init, params_.seed);
+    s.nodes = s.init->init(view, m, nullptr);
     r.init_reason = InitReason::first_frame;
     initialized_now = true;
   }
@@ -201,29 +182,22 @@ FrameResult Tracker::step(const Cloud& cloud) {
     s.backend->associate(s.q, s.acc);  // Eq. (11)
     s.has_association = true;
     ++r.iterations;
-    const auto empty = std::find(s.acc.count.begin(), s.acc.count.end(), 0);
-    if (empty != s.acc.count.end() && paper && !initialized_now) {
+    const int fired = initialized_now ? -1 : s.reinit->fired(s.acc);
+    if (fired >= 0) {
       const Nodes previous = s.nodes;
-      s.nodes = lsq_init(view, m, params_.init, &previous);  // Sec. IV.C
+      s.nodes = s.init->init(view, m, &previous);  // Sec. IV.C
       r.reinit = true;
       r.init_reason = InitReason::empty_neighbourhood;
-      r.reinit_node = static_cast<int>(empty - s.acc.count.begin());
+      r.reinit_node = fired;
       initialized_now = true;
       remaining = params_.iterations;
       continue;
     }
-    double max_move = 0.0;
-    for (int j = 0; j < m; ++j) {
-      const auto c = s.acc.count[j];
-      if (c == 0) continue;
-      const Eigen::Vector3d updated = s.acc.mean(j);  // Eq. (12)
-      max_move = std::max(max_move, (updated - s.nodes[j]).norm());
-      s.nodes[j] = updated;
-    }
+    const double max_move = s.update->update(view, s.acc, *s.backend, s.nodes);
     if (params_.tolerance > 0.0 && max_move <= params_.tolerance) break;
   }
   s.has_previous = true;
-  r.nodes = output_nodes(s.nodes, params_);
+  r.nodes = s.output->output(s.nodes);
   r.counts = s.acc.count;
   r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   r.device_time_s = s.backend->device_seconds();

@@ -1,6 +1,6 @@
 #pragma once
-/// @file The shape tracker: SOM with LSQ initialization and re-initialization
-/// (Section IV, Algorithm 1), or the accelerated-SOM baseline.
+/// @file The shape tracker: Algorithm 1's frame loop (association by a back end, then a
+/// mode's policies: init, update, re-initialization trigger, output; mode.hpp).
 
 #include <cstdint>
 #include <memory>
@@ -12,22 +12,10 @@
 #include "linksight/tracker/cloud.hpp"
 #include "linksight/tracker/geometry.hpp"
 #include "linksight/tracker/init.hpp"
+#include "linksight/tracker/mode.hpp"
 #include "linksight/tracker/model.hpp"
 
 namespace linksight {
-
-enum class TrackerMode {
-  paper,            ///< LSQ init, re-initialization on an empty neighbourhood (Sec. IV)
-  accelerated_som,  ///< baseline: straight-line/random init, no LSQ re-initialization
-  /// paper's SOM, then each output node moved from the seen surface to the ball centre:
-  /// 2/3 r further along its viewing ray (not in the paper; see kCentreOffset)
-  paper_centred,
-};
-
-/// A SOM node is the mean of the surface points nearest it: on a ball seen from afar,
-/// the mean of its visible cap, which (sampled evenly over the image disc) lies
-/// 2/3 r in front of the centre along the viewing ray. paper_centred adds this back.
-inline constexpr double kCentreOffset = 2.0 / 3.0;  ///< of the ball radius
 
 /// Upper bounds that validate() enforces: beyond them a value is a typo, not a setting.
 inline constexpr int kMaxNodes = 1000;
@@ -35,16 +23,14 @@ inline constexpr int kMaxIterations = 1000;
 inline constexpr int kMaxThreads = 1024;
 
 struct TrackerParams {
-  TrackerMode mode = TrackerMode::paper;
-  InitParams init;                            ///< LSQ init (paper mode)
-  SomInit som_init = SomInit::straight_line;  ///< init of the accelerated-SOM mode
+  TrackerMode mode;         ///< a row of the mode table (default: paper)
+  PolicyParams policy;      ///< each policy's own settings; the mode reads its policies'
   BackendKind backend = BackendKind::serial;
   OpenCLOptions opencl;     ///< used by BackendKind::opencl
   int threads = 0;          ///< parallel back ends: 0 = one per core
   int nodes = 12;           ///< M+1 reference vectors (M = 11 components)
   int iterations = 4;       ///< association/mean iterations per frame (Algorithm 1)
   double tolerance = 0.0;   ///< stop early when no node moves more than this [m]; 0: never
-  std::uint64_t seed = 0;   ///< feeds SomInit::random_sample only
   bool compute_sdf = true;  ///< fill FrameResult::sdf_error (not counted in time_s)
   ComponentGeometry geometry;
 
@@ -66,15 +52,13 @@ enum class LostReason : std::uint8_t {
   too_many_points,  ///< more than kMaxPoints usable points
 };
 
-[[nodiscard]] std::string_view to_string(TrackerMode mode);
 [[nodiscard]] std::string_view to_string(InitReason reason);
 [[nodiscard]] std::string_view to_string(LostReason reason);
-[[nodiscard]] TrackerMode parse_mode(std::string_view name);  ///< throws naming the value
-[[nodiscard]] InitMethod parse_init(std::string_view name);   ///< throws naming the value
+[[nodiscard]] InitMethod parse_init(std::string_view name);  ///< throws naming the value
 
 /// Output of one frame.
 struct FrameResult {
-  Nodes nodes;                       ///< M+1 reference vectors, camera frame [m] (paper_centred: moved to the ball centres)
+  Nodes nodes;                       ///< M+1 reference vectors, camera frame [m], as the mode's output policy gives them
   std::vector<std::int64_t> counts;  ///< |N_j| of the last iteration
   int iterations = 0;                ///< iterations run
   bool reinit = false;               ///< LSQ re-initialization fired (Sec. IV.C)
@@ -95,11 +79,14 @@ struct FrameResult {
 class Tracker {
  public:
   explicit Tracker(const TrackerParams& params);  ///< validates params (throws)
+  /// Runs `mode` instead of params.mode: a composition not in the mode table (to try one
+  /// out before it gets a row).
+  Tracker(const TrackerParams& params, const ModeSpec& mode);
   ~Tracker();
   Tracker(Tracker&&) noexcept;
   Tracker& operator=(Tracker&&) noexcept;
 
-  /// Runs Algorithm 1 on one cloud. Never throws for bad data: it reports `lost`.
+  /// Runs Algorithm 1 on one cloud with the mode's policies. Never throws for bad data: it reports `lost`.
   FrameResult step(const Cloud& cloud);
   /// Forgets the previous output; the next frame initializes from scratch.
   void reset();
