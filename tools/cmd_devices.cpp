@@ -8,6 +8,12 @@ namespace linksight::cli {
 namespace {
 
 int run_devices() {
+  if (!opencl_built()) {
+    std::cout << "this build has no OpenCL back end: OpenCL headers and an ICD loader were not "
+                 "found at configure time (apt-get install ocl-icd-opencl-dev opencl-headers, "
+                 "then configure again).\n";
+    return kExitOk;
+  }
   const auto devices = opencl_devices();
   if (devices.empty()) {
     std::cout

@@ -12,9 +12,17 @@
 #include "linksight/sim/synthetic_chain.hpp"
 #include "linksight/tracker/backend.hpp"
 #include "linksight/tracker/init.hpp"
+#include "linksight/tracker/opencl.hpp"
 #include "linksight/tracker/tracker.hpp"
 
 #include <gtest/gtest.h>
+
+/// Skips the calling test, saying why, when back end case `c` is not in this build.
+#define LINKSIGHT_SKIP_IF_UNBUILT(c)                                      \
+  do {                                                                    \
+    const std::string linksight_why = ::linksight::test::unbuilt_reason(c); \
+    if (!linksight_why.empty()) GTEST_SKIP() << linksight_why;            \
+  } while (0)
 
 namespace linksight::test {
 
@@ -82,6 +90,13 @@ inline std::string case_name(const BackendCase& c) {
   if (c.kind == BackendKind::opencl)
     n += c.accumulation == ClAccumulation::atomic ? "_atomic" : "_reduction";
   return n;
+}
+/// Why this back end cannot run in this build; "" when it can.
+inline std::string unbuilt_reason(const BackendCase& c) {
+  if (c.kind == BackendKind::opencl && !opencl_built())
+    return "this build has no OpenCL back end (no OpenCL headers or ICD loader at configure "
+           "time)";
+  return "";
 }
 /// gtest case name of a back-end parameter.
 inline std::string backend_name(const ::testing::TestParamInfo<BackendCase>& p) {

@@ -50,7 +50,10 @@ void expect_same_as(const Pass& ref, const Pass& other) {
   EXPECT_EQ(ref.acc.sum, other.acc.sum);
 }
 
-class BackendEquivalence : public ::testing::TestWithParam<BackendCase> {};
+class BackendEquivalence : public ::testing::TestWithParam<BackendCase> {
+ protected:
+  void SetUp() override { LINKSIGHT_SKIP_IF_UNBUILT(GetParam()); }
+};
 
 TEST_P(BackendEquivalence, OneAssociationPassMatchesSerial) {
   const Cloud cloud = big_cloud(20000, 5);

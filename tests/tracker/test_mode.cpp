@@ -78,6 +78,7 @@ int order_errors(const Nodes& est, const Nodes& truth) {
 using ContractParam = std::tuple<TrackerMode, test::BackendCase, ChainShape>;
 class ModeContract : public ::testing::TestWithParam<ContractParam> {
  protected:
+  void SetUp() override { LINKSIGHT_SKIP_IF_UNBUILT(std::get<1>(GetParam())); }
   TrackerParams params(const test::BackendCase& backend) const {
     TrackerParams p = test::params_for(backend);
     p.mode = std::get<0>(GetParam());

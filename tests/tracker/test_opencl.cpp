@@ -21,6 +21,7 @@ Cloud cloud(std::uint64_t seed, int samples = 3000) {
 }
 
 TEST(OpenCL, ListsAtLeastOneDeviceWithWhatTheBackEndNeeds) {
+  LINKSIGHT_SKIP_IF_UNBUILT(test::BackendCase{BackendKind::opencl});
   const auto devices = opencl_devices();
   ASSERT_FALSE(devices.empty()) << "no OpenCL device: tools/setup.sh installs pocl-opencl-icd";
   bool usable = false;
@@ -40,6 +41,7 @@ TEST(OpenCL, ListsAtLeastOneDeviceWithWhatTheBackEndNeeds) {
 
 // Fixed-point sums: the result is the same integer whatever the work-group size.
 TEST(OpenCL, BitIdenticalForAnyWorkGroupSize) {
+  LINKSIGHT_SKIP_IF_UNBUILT(test::BackendCase{BackendKind::opencl});
   const test::Soa pts(cloud(4, 6000));
   std::vector<float> q;
   for (const auto& n : test::test_chain(sim::ChainShape::c_shape)) {
@@ -73,6 +75,7 @@ TEST(OpenCL, BitIdenticalForAnyWorkGroupSize) {
 }
 
 TEST(OpenCL, TwoTrackersAliveAtOnce) {
+  LINKSIGHT_SKIP_IF_UNBUILT(test::BackendCase{BackendKind::opencl});
   TrackerParams p;
   p.backend = BackendKind::opencl;
   Tracker a(p), b(p);
@@ -89,6 +92,7 @@ TEST(OpenCL, TwoTrackersAliveAtOnce) {
 }
 
 TEST(OpenCL, BuildFailureCarriesTheBuildLog) {
+  LINKSIGHT_SKIP_IF_UNBUILT(test::BackendCase{BackendKind::opencl});
   const std::string e = test::error_of(
       [] { check_opencl_build("kernel void k(global int* a) { a[0] = undeclared_name; }"); });
   EXPECT_NE(e.find("kernel build failed"), std::string::npos) << e;
@@ -97,6 +101,7 @@ TEST(OpenCL, BuildFailureCarriesTheBuildLog) {
 }
 
 TEST(OpenCL, SelectionErrorsSayWhatExists) {
+  LINKSIGHT_SKIP_IF_UNBUILT(test::BackendCase{BackendKind::opencl});
   OpenCLOptions o;
   o.device = "no-such-device-xyz";
   const std::string none = test::error_of([&] { (void)make_backend(BackendKind::opencl, 0, o); });

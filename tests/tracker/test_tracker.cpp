@@ -51,6 +51,7 @@ Cloud chain_cloud(const Nodes& truth, std::uint64_t seed, bool necks, double noi
 
 class TrackerShapes : public ::testing::TestWithParam<std::tuple<test::BackendCase, ChainShape>> {
  protected:
+  void SetUp() override { LINKSIGHT_SKIP_IF_UNBUILT(std::get<0>(GetParam())); }
   TrackerParams params(int nodes) const {
     TrackerParams p = test::params_for(std::get<0>(GetParam()));
     p.nodes = nodes;
@@ -164,6 +165,7 @@ TEST(Tracker, PaperInitFailsWhereTheLinkRunsAlongCameraYAndPcaDoesNot) {
 
 class TrackerBackends : public ::testing::TestWithParam<test::BackendCase> {
  protected:
+  void SetUp() override { LINKSIGHT_SKIP_IF_UNBUILT(GetParam()); }
   TrackerParams params(int nodes = 11) const {
     TrackerParams p = test::params_for(GetParam());
     p.nodes = nodes;

@@ -181,10 +181,7 @@ Selected select_device(const OpenCLOptions& options) {
   options.validate();
   const auto ps = platforms();
   if (ps.empty()) {
-    throw BackendUnavailable(
-        "OpenCL back end: no OpenCL platform found. Install an OpenCL driver (ICD): on "
-        "Debian 'apt-get install pocl-opencl-icd' gives a CPU device; a GPU needs its "
-        "vendor's ICD");
+    throw BackendUnavailable(kNoOpenCLPlatform);
   }
   if (options.platform >= static_cast<int>(ps.size())) {
     throw BackendUnavailable("OpenCL back end: --cl-platform " + std::to_string(options.platform) +
@@ -460,6 +457,8 @@ class OpenCLBackend final : public Backend {
 std::unique_ptr<Backend> make_opencl_backend(const OpenCLOptions& options) {
   return std::make_unique<OpenCLBackend>(options);
 }
+
+bool opencl_built() { return true; }
 
 std::vector<OpenCLDevice> opencl_devices() {
   std::vector<OpenCLDevice> out;

@@ -20,6 +20,16 @@ struct OpenCLDevice {
   bool fp64 = false;           ///< cl_khr_fp64: not needed, listed for information
 };
 
+/// Whether this build has the OpenCL back end (OpenCL headers and an ICD loader were
+/// found at configure time). Without it, the back end throws BackendUnavailable.
+[[nodiscard]] bool opencl_built();
+
+/// The message of the BackendUnavailable thrown where no OpenCL platform exists.
+inline constexpr const char* kNoOpenCLPlatform =
+    "OpenCL back end: no OpenCL platform found. Install an OpenCL driver (ICD): on "
+    "Debian 'apt-get install pocl-opencl-icd' gives a CPU device; a GPU needs its "
+    "vendor's ICD";
+
 /// Every device of every platform; empty when no OpenCL platform is installed.
 [[nodiscard]] std::vector<OpenCLDevice> opencl_devices();
 
