@@ -4,7 +4,8 @@
 # Extra arguments go to `linksight run` (e.g. --set seed=3, --frames 60).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bash "$root/tools/setup.sh"
+# Only what the CLI needs: its packages and its target (tests and benches: tools/test.sh).
+LINKSIGHT_SETUP=cli bash "$root/tools/setup.sh"
 exe="${LINKSIGHT_BUILD_DIR:-$root/build}/tools/linksight"
 cd "$root"
 "$exe" run scenes/default.yaml --compare paper,paper-centred,accelerated-som --out out/default --force "$@"

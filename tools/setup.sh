@@ -2,6 +2,8 @@
 # Installs the Debian packages linksight needs (only those missing; apt-get update only
 # when something is missing), then configures and builds into build/ (or $LINKSIGHT_BUILD_DIR).
 # Extra arguments go to the CMake configure step. Downloads nothing but Debian packages.
+# LINKSIGHT_SETUP=cli (tools/demo.sh): only what the `linksight` CLI needs, and only that
+# target is built; the default (tools/test.sh) installs and builds everything.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build_dir=${LINKSIGHT_BUILD_DIR:-$root/build}
@@ -9,8 +11,6 @@ build_dir=${LINKSIGHT_BUILD_DIR:-$root/build}
 packages=(
   cmake g++ make            # toolchain
   libeigen3-dev             # tracker maths
-  libgtest-dev              # tests
-  libbenchmark-dev          # bench/
   libcli11-dev              # CLI flags
   nlohmann-json3-dev        # intrinsics.json, summary.json
   libstb-dev                # PNG decoding (stb_image)
@@ -21,9 +21,21 @@ packages=(
   libassimp-dev             # sim/: mesh files (load_mesh)
   libembree-dev             # sim/: ray casting for the simulated depth camera
   python3-matplotlib        # linksight run: figures (tools/plot_run.py)
-  slurm-wlm munge           # the slurm ctest: a real single-node Slurm (slurmctld, slurmd, sbatch) and munge
   zlib1g-dev                # assimp's CMake package links libz.so, which --no-install-recommends leaves out
 )
+what=${LINKSIGHT_SETUP:-all}
+case "$what" in
+  cli) configure=(-DLINKSIGHT_BUILD_TESTS=OFF -DLINKSIGHT_BUILD_BENCH=OFF)
+       build=(--target linksight) ;;
+  all) packages+=(
+         libgtest-dev       # tests
+         libbenchmark-dev   # bench/
+         slurm-wlm munge    # the slurm ctest: a real single-node Slurm (slurmctld, slurmd, sbatch) and munge
+       )
+       configure=(-DLINKSIGHT_BUILD_TESTS=ON -DLINKSIGHT_BUILD_BENCH=ON)
+       build=() ;;
+  *) echo "setup: LINKSIGHT_SETUP=$what: expected cli or all" >&2; exit 2 ;;
+esac
 
 missing=()
 for p in "${packages[@]}"; do
@@ -42,5 +54,6 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
-cmake -S "$root" -B "$build_dir" "$@" >/dev/null
-cmake --build "$build_dir" -j "$(nproc)"
+# The configure options come before the caller's, which may override them.
+cmake -S "$root" -B "$build_dir" "${configure[@]}" "$@" >/dev/null
+cmake --build "$build_dir" -j "$(nproc)" "${build[@]}"

@@ -10,6 +10,17 @@ bash "$root/tools/setup.sh"
 # robustness-full is the dense grid (about 12 min): run it with ctest -L robustness-full -j 2.
 ctest --test-dir "${LINKSIGHT_BUILD_DIR:-$root/build}" -j "$jobs" -LE robustness-full --output-on-failure
 
+echo "test: the tracker and its tests alone: no simulator dependencies, no OpenCL"
+# Configured without sim/ (so Bullet, Embree, assimp and yaml-cpp are never looked for)
+# and with OpenCL hidden from CMake: the opencl cases must skip, saying why.
+cmake -S "$root" -B "$root/build-tracker" -DLINKSIGHT_BUILD_SIM=OFF -DLINKSIGHT_BUILD_BENCH=OFF \
+  -DCMAKE_DISABLE_FIND_PACKAGE_OpenCL=ON >/dev/null
+cmake --build "$root/build-tracker" -j "$jobs"
+ctest --test-dir "$root/build-tracker" -j "$jobs" --output-on-failure
+
+echo "test: outputs byte-identical to the reference build (tools/identical_ref)"
+bash "$root/tools/check_identical.sh" --frames 10
+
 echo "test: sanitizer build (unit tests, -fsanitize=address,undefined)"
 LINKSIGHT_BUILD_DIR="$root/build-asan" bash "$root/tools/setup.sh" \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINKSIGHT_BUILD_BENCH=OFF \
