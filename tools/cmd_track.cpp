@@ -50,12 +50,11 @@ int run_track(const TrackOptions& o) {
   TrackerParams p;
   p.mode = parse_mode(o.mode);
   p.policy.lsq_init.method = parse_init(o.init);
-  if (o.som_init == "straight-line")
-    p.policy.som_init.method = SomInit::straight_line;
-  else if (o.som_init == "random-sample")
-    p.policy.som_init.method = SomInit::random_sample;
-  else
-    throw std::invalid_argument("--som-init: unknown value '" + o.som_init + "'");
+  try {
+    p.policy.som_init.method = parse_som_init(o.som_init);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--som-init: ") + e.what());
+  }
   if (o.backend == "auto") {
     p.backend = auto_backend();
     if (!o.quiet) {
@@ -72,13 +71,10 @@ int run_track(const TrackOptions& o) {
     if (const char* env = std::getenv("LINKSIGHT_CL_DEVICE")) p.opencl.device = env;
   }
   p.opencl.platform = o.cl_platform;
-  if (o.cl_accumulation == "reduction") {
-    p.opencl.accumulation = ClAccumulation::reduction;
-  } else if (o.cl_accumulation == "atomic") {
-    p.opencl.accumulation = ClAccumulation::atomic;
-  } else {
-    throw std::invalid_argument("--cl-accumulation: unknown value '" + o.cl_accumulation +
-                                "' (reduction or atomic)");
+  try {
+    p.opencl.accumulation = parse_cl_accumulation(o.cl_accumulation);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--cl-accumulation: ") + e.what());
   }
   p.opencl.work_group_size = o.cl_work_group;
   p.threads = o.threads;

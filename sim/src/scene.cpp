@@ -477,10 +477,10 @@ void read_tracker(const Reader& r, const YAML::Node& n, TrackerParams& p) {
   InitParams& lsq = p.policy.lsq_init;
   lsq.method = parse_init(r.choice(n, w, "init", lsq.method == InitMethod::pca ? "pca" : "paper",
                                    {"paper", "pca"}));
-  p.policy.som_init.method = r.choice(n, w, "som_init", "straight-line", {"straight-line", "random-sample"}) ==
-                       "straight-line"
-                   ? SomInit::straight_line
-                   : SomInit::random_sample;
+  p.policy.som_init.method = parse_som_init(
+      r.choice(n, w, "som_init", std::string(to_string(p.policy.som_init.method)),
+               {std::string(to_string(SomInit::straight_line)),
+                std::string(to_string(SomInit::random_sample))}));
   p.backend = parse_backend(r.choice(n, w, "backend", std::string(to_string(p.backend)),
                                      {"serial", "openmp", "opencl"}));
   p.threads = static_cast<int>(r.number(n, w, "threads", p.threads, 0, kMaxThreads));

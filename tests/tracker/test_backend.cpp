@@ -195,6 +195,10 @@ TEST(Backend, ParseNamesTheBadValue) {
     EXPECT_NE(std::string(e.what()).find("'cuda'"), std::string::npos);
   }
   EXPECT_THROW((void)make_backend(BackendKind::openmp, -1), std::invalid_argument);
+  for (const ClAccumulation a : {ClAccumulation::reduction, ClAccumulation::atomic})
+    EXPECT_EQ(parse_cl_accumulation(to_string(a)), a);
+  EXPECT_EQ(test::error_of<std::invalid_argument>([] { (void)parse_cl_accumulation("fast"); }),
+            "unknown accumulation 'fast' (expected reduction or atomic)");
 }
 
 }  // namespace

@@ -180,5 +180,13 @@ TEST(Init, ValidateNamesTheField) {
   }
 }
 
+TEST(SomInit, NamesRoundTripAndBadOnesAreNamed) {
+  for (const SomInit m : {SomInit::straight_line, SomInit::random_sample})
+    EXPECT_EQ(parse_som_init(to_string(m)), m);
+  EXPECT_EQ(to_string(SomInit::random_sample), "random-sample");
+  EXPECT_EQ(test::error_of<std::invalid_argument>([] { (void)parse_som_init("grid"); }),
+            "unknown SOM init 'grid' (expected straight-line or random-sample)");
+}
+
 }  // namespace
 }  // namespace linksight

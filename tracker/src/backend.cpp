@@ -42,6 +42,17 @@ Eigen::Vector3d Accumulation::mean(int j) const {
           static_cast<double>(sum[3 * k + 2]) / scale};
 }
 
+std::string_view to_string(ClAccumulation accumulation) {
+  return accumulation == ClAccumulation::atomic ? "atomic" : "reduction";
+}
+
+ClAccumulation parse_cl_accumulation(std::string_view name) {
+  if (name == "reduction") return ClAccumulation::reduction;
+  if (name == "atomic") return ClAccumulation::atomic;
+  throw std::invalid_argument("unknown accumulation '" + std::string(name) +
+                              "' (expected reduction or atomic)");
+}
+
 void OpenCLOptions::validate() const {
   if (platform < -1) {
     throw std::invalid_argument("OpenCLOptions.platform = " + std::to_string(platform) +

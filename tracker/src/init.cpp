@@ -225,6 +225,17 @@ Nodes lsq_init(const PointsView& points, int n_nodes, const InitParams& params,
   return nodes;
 }
 
+std::string_view to_string(SomInit method) {
+  return method == SomInit::straight_line ? "straight-line" : "random-sample";
+}
+
+SomInit parse_som_init(std::string_view name) {
+  if (name == "straight-line") return SomInit::straight_line;
+  if (name == "random-sample") return SomInit::random_sample;
+  throw std::invalid_argument("unknown SOM init '" + std::string(name) +
+                              "' (expected straight-line or random-sample)");
+}
+
 Nodes som_init(const PointsView& points, int n_nodes, SomInit method, std::uint64_t seed) {
   if (points.size() == 0 || n_nodes < 2) {
     throw std::invalid_argument("som_init: need at least 1 point and 2 nodes");

@@ -29,6 +29,10 @@ enum class ClAccumulation {
   atomic,     ///< the paper's global atomics (int64 fixed point: OpenCL 1.2 has no float atomics)
 };
 
+/// "reduction" / "atomic"; parse throws std::invalid_argument naming the value.
+[[nodiscard]] std::string_view to_string(ClAccumulation accumulation);
+[[nodiscard]] ClAccumulation parse_cl_accumulation(std::string_view name);
+
 /// Where and how the OpenCL back end runs.
 struct OpenCLOptions {
   int platform = -1;   ///< platform index; -1: any

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <string_view>
 
 #include "linksight/tracker/model.hpp"
 
@@ -41,6 +42,10 @@ enum class SomInit {
   straight_line,  ///< evenly spaced on the principal-axis segment spanned by the cloud
   random_sample,  ///< nodes drawn from the cloud with a seeded generator, unordered
 };
+
+/// "straight-line" / "random-sample"; parse throws std::invalid_argument naming the value.
+[[nodiscard]] std::string_view to_string(SomInit method);
+[[nodiscard]] SomInit parse_som_init(std::string_view name);
 
 /// The accelerated-SOM baseline's initialization. `seed` feeds random_sample only.
 [[nodiscard]] Nodes som_init(const PointsView& points, int n_nodes, SomInit method,
