@@ -9,9 +9,7 @@ namespace {
 
 int run_devices() {
   if (!opencl_built()) {
-    std::cout << "this build has no OpenCL back end: OpenCL headers and an ICD loader were not "
-                 "found at configure time (apt-get install ocl-icd-opencl-dev opencl-headers, "
-                 "then configure again).\n";
+    std::cout << kNoOpenCLBuild << ".\n";
     return kExitOk;
   }
   const auto devices = opencl_devices();

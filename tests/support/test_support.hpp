@@ -93,9 +93,7 @@ inline std::string case_name(const BackendCase& c) {
 }
 /// Why this back end cannot run in this build; "" when it can.
 inline std::string unbuilt_reason(const BackendCase& c) {
-  if (c.kind == BackendKind::opencl && !opencl_built())
-    return "this build has no OpenCL back end (no OpenCL headers or ICD loader at configure "
-           "time)";
+  if (c.kind == BackendKind::opencl && !opencl_built()) return kNoOpenCLBuild;
   return "";
 }
 /// gtest case name of a back-end parameter.
@@ -115,6 +113,15 @@ inline TrackerParams params_for(const BackendCase& c) {
   p.threads = 2;
   p.opencl.accumulation = c.accumulation;
   return p;
+}
+
+/// The modes as parse_mode's error lists them: "a, b or c", from the mode table.
+inline std::string expected_modes() {
+  const std::vector<std::string> names = mode_names();
+  std::string s;
+  for (std::size_t i = 0; i < names.size(); ++i)
+    s += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
+  return s;
 }
 
 /// The message of the E that f() throws; "no error" when it throws nothing. Any other

@@ -822,8 +822,7 @@ TEST_F(Cli, UnknownFlagAndBadValues) {
   expect_bad_input("--input " + seq.string() + " --nodes 1", "TrackerParams.nodes = 1",
                    "must be >= 2");
   expect_bad_input("--input " + seq.string() + " --nodes abc", "--nodes", "");
-  expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'",
-                   "paper, accelerated-som or paper-centred");
+  expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'", test::expected_modes());
   expect_bad_input("--input " + seq.string() + " --threads 100000",
                    "TrackerParams.threads = 100000", "<= 1024");
   expect_bad_input("--input " + seq.string() + " --nodes 2000000000",

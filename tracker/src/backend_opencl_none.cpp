@@ -9,9 +9,7 @@ namespace linksight {
 namespace {
 
 [[noreturn]] void unavailable() {
-  throw BackendUnavailable(std::string(kNoOpenCLPlatform) +
-                           " (this build has no OpenCL: configure it with "
-                           "ocl-icd-opencl-dev and opencl-headers installed)");
+  throw BackendUnavailable(std::string(kNoOpenCLPlatform) + "; " + kNoOpenCLBuild);
 }
 
 }  // namespace

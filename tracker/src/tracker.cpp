@@ -1,6 +1,5 @@
 #include "linksight/tracker/tracker.hpp"
 
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>

@@ -30,6 +30,12 @@ inline constexpr const char* kNoOpenCLPlatform =
     "Debian 'apt-get install pocl-opencl-icd' gives a CPU device; a GPU needs its "
     "vendor's ICD";
 
+/// What a build without OpenCL says (the back end's error, `linksight devices`, skipped tests).
+inline constexpr const char* kNoOpenCLBuild =
+    "this build has no OpenCL back end: OpenCL headers and an ICD loader were not found at "
+    "configure time (apt-get install ocl-icd-opencl-dev opencl-headers, then configure "
+    "again)";
+
 /// Every device of every platform; empty when no OpenCL platform is installed.
 [[nodiscard]] std::vector<OpenCLDevice> opencl_devices();
 
