@@ -6,7 +6,6 @@
 #include "linksight/sim/camera.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/trajectory.hpp"
-#include "linksight/sim/world.hpp"
 
 namespace linksight::sim {
 
