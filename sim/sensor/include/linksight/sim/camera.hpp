@@ -21,6 +21,16 @@ namespace linksight::sim {
                                         const Eigen::Vector3d& target_W,
                                         const Eigen::Vector3d& up_W = Eigen::Vector3d::UnitZ());
 
+/// Pixels [u0, u1] x [v0, v1], inclusive; empty when u0 > u1 or v0 > v1.
+struct PixelBox {
+  int u0 = 0, u1 = -1, v0 = 0, v1 = -1;
+  [[nodiscard]] bool empty() const { return u0 > u1 || v0 > v1; }
+  [[nodiscard]] bool contains(int u, int v) const {
+    return v >= v0 && v <= v1 && u >= u0 && u <= u1;
+  }
+  friend bool operator==(const PixelBox&, const PixelBox&) = default;
+};
+
 struct CameraParams {
   io::Intrinsics intrinsics = sr300_intrinsics();
   /// Pose of the camera C in the world W. Default: 0.6 m in front of a chain that leaves

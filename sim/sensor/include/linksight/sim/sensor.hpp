@@ -13,6 +13,7 @@
 #include "linksight/sim/camera.hpp"
 #include "linksight/sim/mesh.hpp"
 #include "linksight/sim/noise.hpp"
+#include "linksight/sim/sensor_noise.hpp"
 #include "linksight/sim/trajectory.hpp"
 #include "linksight/tracker/geometry.hpp"
 
@@ -76,16 +77,6 @@ struct SensorParams {
   void validate() const;        ///< throws std::invalid_argument naming the field
 };
 
-/// Pixels [u0, u1] x [v0, v1], inclusive; empty when u0 > u1 or v0 > v1.
-struct PixelBox {
-  int u0 = 0, u1 = -1, v0 = 0, v1 = -1;
-  [[nodiscard]] bool empty() const { return u0 > u1 || v0 > v1; }
-  [[nodiscard]] bool contains(int u, int v) const {
-    return v >= v0 && v <= v1 && u >= u0 && u <= u1;
-  }
-  friend bool operator==(const PixelBox&, const PixelBox&) = default;
-};
-
 /// Which pixels render() computes.
 struct RenderExtent {
   /// Only the pixels the chain can be seen in (its bounds' projection, widened by the
@@ -144,6 +135,10 @@ class Sensor {
 
   [[nodiscard]] const SensorParams& params() const;
   [[nodiscard]] const SensorTimes& last_times() const;
+  /// What the noise stage read in the last render into `frame`: views into `frame` and
+  /// into the sensor's scratch, valid until the next render. SensorNoise::apply on it
+  /// gives that render's depth again.
+  [[nodiscard]] NoiseInput last_noise_input(const DepthFrame& frame) const;
 
  private:
   struct Impl;

@@ -1,0 +1,62 @@
+#pragma once
+/// @file The sensor's last stage on its own: the SR300 noise model applied to noise-free
+/// images, with no ray casting. Sensor::render calls it on what Embree cast; calibration
+/// or a test can call it on any surface (a plane, a recording's fitted surface).
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "linksight/io/depth_png.hpp"
+#include "linksight/sim/camera.hpp"
+#include "linksight/sim/noise.hpp"
+
+namespace linksight::sim {
+
+/// How far from a pixel the edge model reads the clean depth [px] (its 2-px band).
+inline constexpr int kEdgeReachPx = 2;
+
+/// The noise-free images the noise model reads: row-major, width x height, each of
+/// width * height values; read only where depth_m > 0.
+struct NoiseInput {
+  int width = 0, height = 0;
+  std::span<const float> depth_m;        ///< noise-free depth along the ray [m], 0 = nothing hit
+  std::span<const float> incidence;      ///< angle of the camera ray to the normal [rad]
+  std::span<const float> cos_camera;     ///< its cosine, in [0, 1]
+  std::span<const float> cos_projector;  ///< cos of the projector ray to the normal; <= 0: lit from behind
+  std::span<const float> reflectance;    ///< of the surface hit, for the low-signal dropout
+  std::span<const std::uint8_t> lit;     ///< 1: the projector reaches the point (shadow.enabled)
+};
+
+/// The noise model of NoiseParams (axial sigma, correlated noise, dropouts and holes,
+/// edge bands and flying pixels, range, quantization) as one stage. Keeps scratch
+/// buffers between frames: not thread-safe; apply() is parallel inside.
+class SensorNoise {
+ public:
+  /// Throws std::invalid_argument naming the field of `noise` or `camera` that is bad.
+  SensorNoise(const NoiseParams& noise, const CameraParams& camera);
+
+  /// Writes `depth` (sensor units, 0 = none) and `depth_m` ([m], 0 = none; quantized when
+  /// noise.quantize) for the pixels in `noisy`, clearing the rest. Every hit (depth_m > 0)
+  /// must lie in `hits` (the correlated field covers them). Draws come from (seed, frame)
+  /// and the pixel index only: the same for any thread count (`threads` 0: the OpenMP
+  /// default). Throws std::invalid_argument when the input's size is not the camera's.
+  void apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame,
+             const PixelBox& noisy, const PixelBox& hits, int threads, io::DepthImage& depth,
+             std::vector<float>& depth_m);
+  /// The whole image.
+  void apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame, int threads,
+             io::DepthImage& depth, std::vector<float>& depth_m);
+
+ private:
+  NoiseParams noise_;
+  CameraParams camera_;
+  std::vector<float> blur_kernel_;            // correlated axial noise, set at set-up
+  std::vector<float> white_, blurred_, field_;  // its per-frame buffers
+  std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
+  std::vector<int> blob_;                     // the hole being grown
+  std::vector<std::uint32_t> blob_stamp_;     // per pixel: the id of the last blob it joined
+  std::uint32_t blob_id_ = 0;
+};
+
+}  // namespace linksight::sim

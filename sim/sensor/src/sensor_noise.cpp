@@ -1,0 +1,265 @@
+#include "linksight/sim/sensor_noise.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+#include "pixel_draws.hpp"
+
+namespace linksight::sim {
+namespace {
+
+using detail::kAxial;
+using detail::kEdge;
+using detail::kFlying;
+using detail::kMix;
+using detail::normal;
+using detail::pixel_key;
+using detail::inverse_normal_cdf;
+using detail::uniform;
+
+// A normalized Gaussian of standard deviation s [px], cut at 3 s, with sum k^2 = 1: one
+// 1-D pass keeps unit white noise at unit variance (at the image border the kernel is cut
+// and the variance a little lower).
+std::vector<float> unit_variance_gaussian(double s) {
+  const int R = static_cast<int>(std::ceil(3 * s));
+  std::vector<double> g(static_cast<std::size_t>(2 * R + 1));
+  double sum2 = 0;
+  for (int i = -R; i <= R; ++i) {
+    g[static_cast<std::size_t>(i + R)] = std::exp(-0.5 * i * i / (s * s));
+    sum2 += g[static_cast<std::size_t>(i + R)] * g[static_cast<std::size_t>(i + R)];
+  }
+  std::vector<float> k(g.size());
+  for (std::size_t i = 0; i < g.size(); ++i) k[i] = static_cast<float>(g[i] / std::sqrt(sum2));
+  return k;
+}
+
+// The separable blur of a w x h row-major field, one pass each way. Every output sums
+// kernel[i + R] * input over the taps inside the field, i ascending from 0, the same float
+// operations in the same order whatever the thread count; the loops run along rows, so
+// the compiler vectorizes them and the column pass reads whole rows.
+void blur_rows(const std::vector<float>& src, std::vector<float>& dst, int w, int h,
+               const std::vector<float>& kernel, int threads) {
+  const int R = static_cast<int>(kernel.size() / 2);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (int y = 0; y < h; ++y) {
+    const float* in = src.data() + static_cast<std::size_t>(y) * w;
+    float* out = dst.data() + static_cast<std::size_t>(y) * w;
+    std::fill(out, out + w, 0.0F);
+    for (int i = -R; i <= R; ++i) {
+      const float k = kernel[static_cast<std::size_t>(i + R)];
+      for (int x = std::max(0, -i); x < std::min(w, w - i); ++x) out[x] += k * in[x + i];
+    }
+  }
+}
+void blur_columns(const std::vector<float>& src, std::vector<float>& dst, int w, int h,
+                  const std::vector<float>& kernel, int threads) {
+  const int R = static_cast<int>(kernel.size() / 2);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (int y = 0; y < h; ++y) {
+    float* out = dst.data() + static_cast<std::size_t>(y) * w;
+    std::fill(out, out + w, 0.0F);
+    for (int i = std::max(-R, -y); i <= std::min(R, h - 1 - y); ++i) {
+      const float k = kernel[static_cast<std::size_t>(i + R)];
+      const float* in = src.data() + static_cast<std::size_t>(y + i) * w;
+      for (int x = 0; x < w; ++x) out[x] += k * in[x];
+    }
+  }
+}
+
+}  // namespace
+
+SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
+    : noise_(noise), camera_(camera) {
+  noise.validate();
+  camera.validate();
+  if (noise.axial.correlation_px > 0) blur_kernel_ = unit_variance_gaussian(noise.axial.correlation_px);
+}
+
+void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame, int threads,
+                        io::DepthImage& depth, std::vector<float>& depth_m) {
+  const PixelBox all{0, in.width - 1, 0, in.height - 1};
+  apply(in, seed, frame, all, all, threads, depth, depth_m);
+}
+
+void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame,
+                        const PixelBox& noisy, const PixelBox& hits, int threads,
+                        io::DepthImage& depth, std::vector<float>& depth_m) {
+  const io::Intrinsics& K = camera_.intrinsics;
+  const NoiseParams& noise = noise_;
+  const int W = K.width, H = K.height;
+  const std::size_t n = static_cast<std::size_t>(W) * H;
+  if (in.width != W || in.height != H)
+    throw std::invalid_argument("sensor noise: a " + std::to_string(in.width) + "x" +
+                                std::to_string(in.height) + " input for a " + std::to_string(W) +
+                                "x" + std::to_string(H) + " camera");
+  for (const std::size_t size : {in.depth_m.size(), in.incidence.size(), in.cos_camera.size(),
+                                 in.cos_projector.size(), in.reflectance.size(), in.lit.size()}) {
+    if (size != n)
+      throw std::invalid_argument("sensor noise: an input image of " + std::to_string(size) +
+                                  " values for " + std::to_string(n) + " pixels");
+  }
+  if (threads <= 0) threads = omp_get_max_threads();
+  const std::uint64_t frame_seed = detail::sensor_frame_seed(seed, frame);
+  depth.width = W;
+  depth.height = H;
+  depth.data.assign(n, 0);
+  depth_m.assign(n, 0.0F);
+  hole_.assign(n, 0);
+  if (noise.dropouts.enabled && noise.dropouts.hole_rate > 0) {
+    std::uint64_t state = derive_seed(frame_seed, "holes");
+    auto next = [&] { return unit_interval(splitmix64(state)); };
+    // Poisson count: Knuth's product method, or a rounded normal for large rates.
+    int holes = 0;
+    const double rate = noise.dropouts.hole_rate;
+    if (rate < 30) {
+      const double limit = std::exp(-rate);
+      for (double prod = next(); prod > limit; prod *= next()) ++holes;
+    } else {
+      const double u1 = 1.0 - next(), u2 = next();
+      const double g = std::sqrt(-2 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
+      holes = std::max(0, static_cast<int>(std::lround(rate + std::sqrt(rate) * g)));
+    }
+    // Sizes log-normal: ln A ~ N(ln median, s^2) with s from the 90th percentile.
+    const double mu = std::log(noise.dropouts.hole_median_px);
+    const double s_ln = std::log(noise.dropouts.hole_p90_px / noise.dropouts.hole_median_px) /
+                        1.2815515655446004;  // the standard normal's 90th percentile
+    std::vector<int>& blob = blob_;
+    blob_stamp_.resize(n, 0);  // pixel k is in the current blob when its stamp is blob_id
+    for (int h = 0; h < holes; ++h) {
+      const int u0 = std::min(W - 1, static_cast<int>(next() * W));
+      const int v0 = std::min(H - 1, static_cast<int>(next() * H));
+      const double g = inverse_normal_cdf(std::clamp(next(), 1e-12, 1 - 1e-12));
+      const int area = static_cast<int>(std::clamp(std::lround(std::exp(mu + s_ln * g)), 1L,
+                                                   static_cast<long>(Dropouts::kMaxHolePx)));
+      // Grown one 4-neighbour of a random member at a time: a compact, ragged blob.
+      if (++blob_id_ == 0) {  // the ids wrapped: forget every stamp
+        std::fill(blob_stamp_.begin(), blob_stamp_.end(), 0U);
+        blob_id_ = 1;
+      }
+      const std::uint32_t id = blob_id_;
+      blob.assign(1, v0 * W + u0);
+      blob_stamp_[static_cast<std::size_t>(blob[0])] = id;
+      for (int tries = 0; static_cast<int>(blob.size()) < area && tries < 50 * area; ++tries) {
+        const int k = blob[std::min(blob.size() - 1, static_cast<std::size_t>(next() * blob.size()))];
+        const int d = std::min(3, static_cast<int>(next() * 4));
+        const int u = k % W + (d == 0) - (d == 1), v = k / W + (d == 2) - (d == 3);
+        if (u < 0 || u >= W || v < 0 || v >= H) continue;
+        const std::size_t kk = static_cast<std::size_t>(v) * W + u;
+        if (blob_stamp_[kk] == id) continue;
+        blob_stamp_[kk] = id;
+        blob.push_back(v * W + u);
+      }
+      for (const int k : blob) hole_[static_cast<std::size_t>(k)] = 1;
+    }
+  }
+  // Correlated axial noise: a white field over the box of hit pixels (plus the kernel's
+  // reach), blurred row then column by a normalized Gaussian. Each white value depends on
+  // its pixel's key only, so the field is the same for any thread count.
+  const bool correlated = noise.axial.enabled && noise.axial.correlation_px > 0;
+  int bu0 = W, bu1 = -1, bv0 = H, bv1 = -1;
+  if (correlated) {  // hits lie in the cast rectangle
+    for (int v = std::max(0, hits.v0); v <= std::min(H - 1, hits.v1); ++v)
+      for (int u = std::max(0, hits.u0); u <= std::min(W - 1, hits.u1); ++u)
+        if (in.depth_m[static_cast<std::size_t>(v) * W + u] > 0) {
+          bu0 = std::min(bu0, u), bu1 = std::max(bu1, u);
+          bv0 = std::min(bv0, v), bv1 = std::max(bv1, v);
+        }
+  }
+  if (correlated && bu1 >= 0) {
+    const int R = static_cast<int>(blur_kernel_.size() / 2);
+    const int fu0 = std::max(0, bu0 - R), fu1 = std::min(W - 1, bu1 + R);
+    const int fv0 = std::max(0, bv0 - R), fv1 = std::min(H - 1, bv1 + R);
+    const int fw = fu1 - fu0 + 1, fh = fv1 - fv0 + 1;
+    white_.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
+    blurred_.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
+    field_.assign(n, 0.0F);
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int v = fv0; v <= fv1; ++v)
+      for (int u = fu0; u <= fu1; ++u)
+        white_[static_cast<std::size_t>(v - fv0) * fw + (u - fu0)] = static_cast<float>(
+            normal(pixel_key(frame_seed, static_cast<std::size_t>(v) * W + u), kAxial));
+    blur_rows(white_, blurred_, fw, fh, blur_kernel_, threads);
+    blur_columns(blurred_, white_, fw, fh, blur_kernel_, threads);
+    for (int y = 0; y < fh; ++y)
+      std::copy_n(white_.begin() + static_cast<std::ptrdiff_t>(y) * fw, fw,
+                  field_.begin() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0);
+  }
+  const double cos_max = std::cos(noise.dropouts.max_incidence);
+  const double z_min = camera_.z_min, z_max = camera_.z_max;
+  const double unit = K.depth_scale;
+#pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
+  for (int v = noisy.v0; v <= noisy.v1; ++v) {
+    for (int u = noisy.u0; u <= noisy.u1; ++u) {
+      const std::size_t pix = static_cast<std::size_t>(v) * W + u;
+      const double z0 = in.depth_m[pix];
+      if (z0 <= 0) continue;
+      const std::uint64_t key = pixel_key(frame_seed, pix);
+      if (noise.shadow.enabled && !in.lit[pix]) continue;
+      if (noise.dropouts.enabled) {
+        const double reflect = in.reflectance[pix];
+        if (in.cos_camera[pix] < cos_max || in.cos_projector[pix] < cos_max)
+          continue;
+        if (reflect * in.cos_projector[pix] / (z0 * z0) < noise.dropouts.min_signal) continue;
+        if (hole_[pix]) continue;
+      }
+      double z = z0;
+      if (noise.edges.enabled) {
+        const EdgeEffects& e = noise.edges;
+        bool near_edge = false;  // a farther neighbour (or one that sees nothing)
+        bool far_1 = false, far_2 = false;  // a nearer pixel 1 or 2 px away
+        double z_far = 0;        // the farthest neighbour across a jump, for flying pixels
+        auto clean = [&](int uu, int vv) {
+          return in.depth_m[static_cast<std::size_t>(vv) * W + uu];
+        };
+        const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
+        for (int k = 0; k < 4; ++k) {
+          const int uu = u + du[k], vv = v + dv[k];
+          if (uu < 0 || uu >= W || vv < 0 || vv >= H) continue;
+          const double zn = clean(uu, vv);
+          if (zn <= 0 || zn - z0 > e.jump) {
+            near_edge = true;
+            z_far = std::max(z_far, zn);
+          } else if (z0 - zn > e.jump) {
+            far_1 = true;
+          }
+          // 2 px away: the jump must fall between the neighbour (on this pixel's surface)
+          // and the pixel after it, not be the sum of two steps of a steep slope. Only
+          // looked at when that band can drop anything (it costs a third of the pass).
+          if (!(e.band_p2 > 0)) continue;
+          const int u2 = u + kEdgeReachPx * du[k], v2 = v + kEdgeReachPx * dv[k];
+          if (u2 < 0 || u2 >= W || v2 < 0 || v2 >= H) continue;
+          const double z2 = clean(u2, v2);
+          if (zn > 0 && std::abs(zn - z0) <= e.jump && z2 > 0 && zn - z2 > e.jump) far_2 = true;
+        }
+        // The far side first: its band is the camera's, whatever the near side does.
+        if (far_1) {
+          if (uniform(key, kEdge) < e.band_p1) continue;
+        } else if (far_2) {
+          if (uniform(key, kEdge) < e.band_p2) continue;
+        } else if (near_edge) {
+          if (uniform(key, kEdge) < e.p_drop) continue;
+          if (z_far > 0 && uniform(key, kFlying) < e.p_flying) {
+            const double lo = std::max(0.0, e.flying_position - e.flying_spread);
+            const double hi = std::min(1.0, e.flying_position + e.flying_spread);
+            z = z0 + (lo + uniform(key, kMix) * (hi - lo)) * (z_far - z0);  // between the two
+          }
+        }
+      }
+      if (noise.axial.enabled)
+        z += noise.axial.sigma(z0, in.incidence[pix]) *
+             (correlated ? static_cast<double>(field_[pix]) : normal(key, kAxial));
+      if (z < z_min || z > z_max) continue;
+      const long q = static_cast<long>(z / unit + 0.5);  // z > 0 here
+      if (q <= 0 || q > 65535) continue;
+      depth.data[pix] = static_cast<std::uint16_t>(q);
+      depth_m[pix] = static_cast<float>(noise.quantize ? q * unit : z);
+    }
+  }
+}
+
+}  // namespace linksight::sim

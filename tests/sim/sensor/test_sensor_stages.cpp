@@ -1,0 +1,220 @@
+// The sensor's stages on their own (sim/sensor/src/sensor_{cull,noise}.cpp): the culling
+// bounds hold every ray they must, and the noise model runs on hand-made noise-free
+// images without Embree and reproduces what Sensor::render gave.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "linksight/sim/sensor.hpp"
+#include "linksight/sim/sensor_cull.hpp"
+#include "linksight/sim/sensor_noise.hpp"
+#include "test_support.hpp"
+
+namespace linksight::sim {
+namespace {
+
+constexpr double kSigmaRelTol = 0.10;  // as the Sensor's plane test: sigma within 10%
+
+// Noise-free images of a plane facing the camera at depth `z` [m], every pixel hit.
+struct Plate {
+  int width = 0, height = 0;
+  std::vector<float> depth_m, incidence, cos_camera, cos_projector, reflectance;
+  std::vector<std::uint8_t> lit;
+  Plate(const io::Intrinsics& K, double z) : width(K.width), height(K.height) {
+    const std::size_t n = static_cast<std::size_t>(width) * height;
+    depth_m.assign(n, static_cast<float>(z));
+    incidence.assign(n, 0.0F);
+    cos_camera.assign(n, 1.0F);
+    cos_projector.assign(n, 1.0F);
+    reflectance.assign(n, 1.0F);
+    lit.assign(n, 1);
+  }
+  [[nodiscard]] NoiseInput input() const {
+    return {width, height, depth_m, incidence, cos_camera, cos_projector, reflectance, lit};
+  }
+};
+
+TEST(SensorNoise, ReproducesTheRenderFromItsNoiseFreeImages) {
+  // Every term on (holes, edges, shadows, correlated noise), the link in front of a wall.
+  SensorParams p;
+  p.camera.X_WC = look_at({0.25, -0.5, 0.5}, {0.25, 0.0, 0.5});
+  p.noise = NoiseParams::sr300();
+  p.noise.dropouts.hole_rate = 20;
+  p.threads = 2;
+  const ComponentGeometry g;
+  BackgroundObject wall;
+  wall.shape.half_extents = Eigen::Vector3d(3.0, 0.01, 3.0);
+  wall.X_WO.translation() = Eigen::Vector3d(0.25, 0.3, 0.5);
+  Sensor sensor(p, g, {}, {wall});
+  const DepthFrame frame = sensor.render(test::straight_chain_frames(g), 0.0, 42, 7);
+  std::size_t hits = 0;
+  for (const std::uint16_t d : frame.depth.data) hits += d != 0;
+  ASSERT_GT(hits, 100000U);
+
+  SensorNoise noise(p.noise, p.camera);
+  io::DepthImage depth;
+  std::vector<float> depth_m;
+  noise.apply(sensor.last_noise_input(frame), 42, 7, 1, depth, depth_m);
+  EXPECT_EQ(depth.data, frame.depth.data);
+  EXPECT_EQ(depth_m, frame.depth_m);
+  // Another frame draws other noise.
+  noise.apply(sensor.last_noise_input(frame), 42, 8, 1, depth, depth_m);
+  EXPECT_NE(depth.data, frame.depth.data);
+}
+
+TEST(SensorNoise, PlaneSigmaMatchesTheModelWithoutEmbree) {
+  NoiseParams n = NoiseParams::off();
+  n.axial.enabled = true;
+  n.axial.correlation_px = 0;
+  const CameraParams camera;
+  for (const double z : {0.4, 0.9}) {
+    const Plate plate(camera.intrinsics, z);
+    SensorNoise noise(n, camera);
+    io::DepthImage depth;
+    std::vector<float> depth_m;
+    noise.apply(plate.input(), 3, 1, 2, depth, depth_m);
+    double sum = 0, sum2 = 0;
+    for (const float d : depth_m) {
+      ASSERT_GT(d, 0.0F);
+      sum += d - z;
+      sum2 += (d - z) * (d - z);
+    }
+    const double N = static_cast<double>(depth_m.size());
+    const double sigma = std::sqrt(sum2 / N - (sum / N) * (sum / N));
+    const double model = n.axial.sigma(z, 0.0);
+    EXPECT_NEAR(sigma / model, 1.0, kSigmaRelTol) << "z = " << z;
+    EXPECT_NEAR(sum / N, 0.0, 0.05 * model) << "z = " << z << ": biased";
+  }
+}
+
+TEST(SensorNoise, ShadowRangeAndRegionRulesGiveNoDepth) {
+  NoiseParams n = NoiseParams::off();
+  n.shadow.enabled = true;
+  n.quantize = true;
+  const CameraParams camera;
+  Plate plate(camera.intrinsics, 0.5);
+  plate.lit[10] = 0;                                       // in the projector's shadow
+  plate.depth_m[11] = static_cast<float>(camera.z_max + 0.1);  // beyond the range
+  plate.depth_m[12] = 0.0F;                                // nothing hit
+  SensorNoise noise(n, camera);
+  io::DepthImage depth;
+  std::vector<float> depth_m;
+  const PixelBox noisy{0, 99, 0, 0};  // the first 100 pixels of row 0
+  noise.apply(plate.input(), 1, 1, noisy, {0, plate.width - 1, 0, plate.height - 1}, 1, depth, depth_m);
+  ASSERT_EQ(depth.data.size(), plate.depth_m.size());
+  for (int i = 0; i < 100; ++i) {
+    const bool none = i == 10 || i == 11 || i == 12;
+    EXPECT_EQ(depth.data[i] == 0, none) << "pixel " << i;
+  }
+  // Quantized to the depth unit; nothing outside `noisy`.
+  const double unit = camera.intrinsics.depth_scale;
+  EXPECT_EQ(depth.data[0], static_cast<std::uint16_t>(std::lround(0.5 / unit)));
+  EXPECT_FLOAT_EQ(depth_m[0], static_cast<float>(depth.data[0] * unit));
+  EXPECT_EQ(depth.data[100], 0);
+  EXPECT_EQ(depth.data[static_cast<std::size_t>(plate.width)], 0);
+}
+
+TEST(SensorNoise, SameDepthForAnyThreadCount) {
+  const CameraParams camera;
+  const Plate plate(camera.intrinsics, 0.6);
+  NoiseParams n = NoiseParams::sr300();
+  n.dropouts.hole_rate = 10;
+  SensorNoise noise(n, camera);
+  io::DepthImage one, three;
+  std::vector<float> one_m, three_m;
+  noise.apply(plate.input(), 5, 2, 1, one, one_m);
+  noise.apply(plate.input(), 5, 2, 3, three, three_m);
+  EXPECT_EQ(one.data, three.data);
+  EXPECT_EQ(one_m, three_m);
+}
+
+TEST(SensorNoise, RejectsAnInputOfTheWrongSize) {
+  const CameraParams camera;
+  Plate plate(camera.intrinsics, 0.6);
+  plate.lit.pop_back();
+  SensorNoise noise(NoiseParams::sr300(), camera);
+  io::DepthImage depth;
+  std::vector<float> depth_m;
+  try {
+    noise.apply(plate.input(), 1, 1, 1, depth, depth_m);
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("input image of 307199 values for 307200 pixels"),
+              std::string::npos) << e.what();
+  }
+  NoiseParams bad = NoiseParams::sr300();
+  bad.axial.a = -1;
+  EXPECT_THROW(SensorNoise(bad, camera), std::invalid_argument);
+}
+
+TEST(SensorCull, ReachableHoldsEveryPixelWhoseRayMeetsTheBox) {
+  const CameraParams camera;
+  const io::Intrinsics& K = camera.intrinsics;
+  const Eigen::Isometry3d X_CW = camera.X_WC.inverse();
+  std::mt19937_64 rng(11);  // seeded: the same points every run
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (int box = 0; box < 20; ++box) {
+    const Eigen::Vector3d c(0.1 + 0.3 * unit(rng), -0.1 + 0.2 * unit(rng), 0.35 + 0.2 * unit(rng));
+    const Eigen::Vector3d half(0.01 + 0.1 * unit(rng), 0.01 + 0.1 * unit(rng), 0.01 + 0.1 * unit(rng));
+    const PixelRect r = reachable(c - half, c + half, camera.X_WC, K, 0.0);
+    ASSERT_FALSE(r.empty());
+    for (int k = 0; k < 200; ++k) {
+      const Eigen::Vector3d p_W = c + half.cwiseProduct(Eigen::Vector3d(2 * unit(rng) - 1, 2 * unit(rng) - 1,
+                                                                       2 * unit(rng) - 1));
+      const Eigen::Vector3d p_C = X_CW * p_W;
+      ASSERT_GT(p_C.z(), 0);
+      const double u = K.fx * p_C.x() / p_C.z() + K.cx, v = K.fy * p_C.y() / p_C.z() + K.cy;
+      if (u < 0 || v < 0 || u > K.width - 1 || v > K.height - 1) continue;
+      // The pixels around the point's projection must all be cast.
+      EXPECT_TRUE(r.contains(static_cast<int>(std::floor(u)), static_cast<int>(std::floor(v))));
+      EXPECT_TRUE(r.contains(static_cast<int>(std::ceil(u)), static_cast<int>(std::ceil(v))));
+    }
+  }
+  // Nothing: empty; a corner behind the camera or a distorted camera: the whole image.
+  EXPECT_TRUE(reachable(Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(0, 0, 0), camera.X_WC, K, 0).empty());
+  const PixelRect all{{0, K.width - 1, 0, K.height - 1}};
+  const Eigen::Vector3d eye = camera.X_WC.translation();
+  EXPECT_EQ(reachable(eye - Eigen::Vector3d::Constant(0.1), eye + Eigen::Vector3d::Constant(0.1),
+                      camera.X_WC, K, 0), all);
+  io::Intrinsics distorted = K;
+  distorted.model = io::Distortion::inverse_brown_conrady;
+  EXPECT_EQ(reachable(Eigen::Vector3d(0.2, -0.05, 0.4), Eigen::Vector3d(0.3, 0.05, 0.5), camera.X_WC,
+                      distorted, 0), all);
+  // grown() clips to the image and keeps an empty rectangle empty.
+  EXPECT_EQ(grown(PixelRect{{2, 5, 0, 3}}, 4, K.width, K.height), (PixelRect{{0, 9, 0, 7}}));
+  EXPECT_TRUE(grown(PixelRect{}, 4, K.width, K.height).empty());
+}
+
+TEST(SensorCull, ShadowCasterMayBlockEveryRayThatMeetsTheBox) {
+  // A projector at the origin looking along +z; a box 0.4 m away.
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-0.05, -0.02, 0.38), Eigen::Vector3d(0.05, 0.02, 0.42));
+  const ShadowCaster caster = ShadowCaster::of(box, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  ASSERT_FALSE(caster.everywhere);
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int blocked = 0, free = 0;
+  for (int k = 0; k < 4000; ++k) {
+    // Points from 0.2 to 0.8 m; a segment to the projector meets the box when some of its
+    // samples lie inside.
+    const Eigen::Vector3d p(-0.15 + 0.3 * unit(rng), -0.1 + 0.2 * unit(rng), 0.2 + 0.6 * unit(rng));
+    bool meets = false;
+    for (int s = 1; s <= 400 && !meets; ++s) meets = box.contains(p * (s / 400.0));
+    const bool may = caster.may_block(p.cast<float>());
+    if (meets) {
+      EXPECT_TRUE(may) << p.transpose();
+    }
+    (meets ? blocked : free) += 1;
+  }
+  EXPECT_GT(blocked, 100);
+  EXPECT_GT(free, 100);
+  // Nearer than the box, or outside its silhouette: never blocked.
+  EXPECT_FALSE(caster.may_block(Eigen::Vector3f(0, 0, 0.3F)));
+  EXPECT_FALSE(caster.may_block(Eigen::Vector3f(0.3F, 0, 0.6F)));
+  // An absent body blocks nothing.
+  EXPECT_FALSE(ShadowCaster::of(Eigen::AlignedBox3d(), Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero())
+                   .may_block(Eigen::Vector3f(0, 0, 1)));
+}
+
+}  // namespace
+}  // namespace linksight::sim
