@@ -18,6 +18,7 @@
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
 #include "linksight/sim/depth_stats.hpp"
+#include "linksight/tracker/quantile.hpp"
 
 namespace linksight::cli {
 namespace fs = std::filesystem;
@@ -109,8 +110,7 @@ std::pair<double, double> model_read(const sim::DepthStats& s, const sim::NoiseF
   for (const auto& w : s.samples)
     if (sim::in_sigma_bin(w, b, by_depth, s.depth_bin_max_angle))
       model.push_back(read * fit.params.axial.sigma(w.z, w.angle));
-  std::sort(model.begin(), model.end());
-  const double m = model.empty() ? 0.0 : model[model.size() / 2];
+  const double m = model.empty() ? 0.0 : quantile(model, 0.5);
   return {q, std::sqrt(m * m + q * q)};
 }
 
@@ -176,8 +176,8 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
      << " of the discontinuities hold a lone one\n";
   os << std::setprecision(1) << "interior holes: " << s.holes_per_frame << " per frame";
   if (!s.hole_sizes.empty())  // as fit_noise reads them
-    os << ", median " << static_cast<int>(sim::quantile(s.hole_sizes, 0.5)) << " px, p90 "
-       << static_cast<int>(sim::quantile(s.hole_sizes, 0.9)) << " px";
+    os << ", median " << std::lround(quantile(s.hole_sizes, 0.5)) << " px, p90 "
+       << std::lround(quantile(s.hole_sizes, 0.9)) << " px";
   os << "\n\nnotes:\n";
   for (const std::string& n : fit.notes) os << "  " << n << "\n";
 }

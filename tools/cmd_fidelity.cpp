@@ -17,6 +17,7 @@
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
 #include "linksight/sim/depth_stats.hpp"
+#include "linksight/tracker/quantile.hpp"
 #include "linksight/sim/scene.hpp"
 
 namespace linksight::cli {
@@ -105,8 +106,10 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
   out.push_back({"flying rate", r.flying_rate, s.flying_rate});
   out.push_back({"flying position", r.flying_position, s.flying_position});
   out.push_back({"holes per frame", r.holes_per_frame, s.holes_per_frame});
-  out.push_back({"hole size median px", sim::quantile(r.hole_sizes, 0.5), sim::quantile(s.hole_sizes, 0.5)});
-  out.push_back({"hole size p90 px", sim::quantile(r.hole_sizes, 0.9), sim::quantile(s.hole_sizes, 0.9)});
+  // 0 px where no hole was seen, as the other statistics read 0 when not measured.
+  const auto hole_px = [](const std::vector<int>& v, double q) { return v.empty() ? 0.0 : quantile(v, q); };
+  out.push_back({"hole size median px", hole_px(r.hole_sizes, 0.5), hole_px(s.hole_sizes, 0.5)});
+  out.push_back({"hole size p90 px", hole_px(r.hole_sizes, 0.9), hole_px(s.hole_sizes, 0.9)});
   out.push_back({"depth step mm", r.depth_step * 1e3, s.depth_step * 1e3});
   return out;
 }

@@ -204,21 +204,17 @@ int run_run(const RunOptions& o) {
                                                   ? nlohmann::json(e.frames_to_recover)
                                                   : nlohmann::json(nullptr)}});
     }
-    per_mode[std::string(to_string(modes[k]))] = {
-        {"frames", s.frames},
-        {"lost_frames", s.lost_frames},
-        {"node_err_mm", stats_json(s.node_err, 1e3)},
-        {"pct_frames_under_2mm", 100.0 * s.under_2mm},
-        {"pct_frames_under_5mm", 100.0 * s.under_5mm},
-        {"sdf_err_mm_mean", json_number(s.mean_sdf * 1e3)},
-        {"polyline_err_mm_mean", json_number(s.mean_polyline * 1e3)},
-        {"reinit_count", s.reinit_count},
-        {"swaps", s.swaps},
-        {"swap_frames", s.swap_frames},
-        {"misassigned_nodes", s.misassigned},
-        {"time_ms", stats_json(s.time, 1e3)},
-        {"events", events},
-    };
+    // The metrics under the names sweep's tables use (sim::episode_metrics), then timing
+    // and the events.
+    nlohmann::json m = nlohmann::json::object();
+    for (const sim::EpisodeMetric& metric : sim::episode_metrics(s)) {
+      m[metric.name] = metric.integer && !std::isnan(metric.value)
+                           ? nlohmann::json(static_cast<long>(metric.value))
+                           : json_number(metric.value);
+    }
+    m["time_ms"] = stats_json(s.time, 1e3);
+    m["event_list"] = events;
+    per_mode[std::string(to_string(modes[k]))] = m;
   }
   summary["modes"] = per_mode;
   io::write_file_atomic(stage / "summary.json", [&](std::ostream& os) {

@@ -58,7 +58,7 @@ def number(text):
 def shade_events(ax, summary, fps):
     shown = set()
     for mode in summary["modes"].values():
-        for e in mode["events"]:
+        for e in mode["event_list"]:
             key = (e["kind"], e["start_frame"], e["end_frame"])
             if key in shown:
                 continue

@@ -13,6 +13,7 @@
 #include "linksight/io/intrinsics.hpp"
 #include "linksight/sim/recording.hpp"
 #include "linksight/sim/scene.hpp"
+#include "linksight/sim/score.hpp"
 #include "test_support.hpp"
 
 namespace linksight {
@@ -416,11 +417,15 @@ TEST_F(Cli, RunWritesScoresSummaryAndFigures) {
   for (const char* mode : {"paper", "accelerated-som"}) {
     const auto& m = j["modes"][mode];
     EXPECT_EQ(m["frames"], 4) << mode;
-    for (const char* k : {"mean", "median", "p95", "max"}) {
-      ASSERT_TRUE(m["node_err_mm"][k].is_number()) << mode << " " << k;
-      EXPECT_GT(m["node_err_mm"][k].get<double>(), 0.0);
-      EXPECT_LT(m["node_err_mm"][k].get<double>(), 30.0);
+    for (const char* k : {"node_err_mean_mm", "node_err_median_mm", "node_err_p95_mm", "node_err_max_mm"}) {
+      ASSERT_TRUE(m[k].is_number()) << mode << " " << k;
+      EXPECT_GT(m[k].get<double>(), 0.0);
+      EXPECT_LT(m[k].get<double>(), 30.0);
     }
+    // The same metric names as sweep's tables, in full.
+    for (const sim::EpisodeMetric& metric : sim::episode_metrics(sim::EpisodeSummary{}))
+      EXPECT_TRUE(m.contains(metric.name)) << mode << " " << metric.name;
+    EXPECT_FALSE(m.contains("node_err_mm")) << "the old name";
     EXPECT_TRUE(m["time_ms"]["mean"].is_number());
     EXPECT_TRUE(m["reinit_count"].is_number_integer());
     EXPECT_TRUE(m["swaps"].is_number_integer());

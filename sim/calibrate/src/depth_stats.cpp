@@ -13,19 +13,15 @@
 #include <string>
 
 #include "linksight/sim/sensor.hpp"
+#include "linksight/tracker/quantile.hpp"
 
 namespace linksight::sim {
 
 namespace {
 
-// The median (the mean of the two middle values for an even count); reorders `v`.
-double median_in_place(std::vector<double>& v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  if (v.size() % 2) return *mid;
-  return 0.5 * (*mid + *std::max_element(v.begin(), mid));
-}
+// The median (linksight::quantile), 0 when there is nothing: a statistic that was not
+// measured reads 0. Reorders `v`.
+double median_in_place(std::vector<double>& v) { return v.empty() ? 0 : quantile_in_place(v, 0.5); }
 double median(std::vector<double> v) { return median_in_place(v); }
 
 // One discontinuity found on a row: widths in px, depths in m.
@@ -441,7 +437,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   s.flying = flying;
   s.flying_rate = s.band_neighbours > 0 ? static_cast<double>(flying) / s.band_neighbours : 0;
   s.flying_position = median(positions);
-  s.flying_iqr = quantile(positions, 0.75) - quantile(positions, 0.25);
+  s.flying_iqr = positions.empty() ? 0 : quantile(positions, 0.75) - quantile(positions, 0.25);
   const int crossings = s.near_left.edges + s.near_right.edges;
   s.flying_per_edge = crossings > 0 ? static_cast<double>(lone) / crossings : 0;
   s.pixels = static_cast<long>(K.width) * K.height * s.frames;
@@ -563,12 +559,9 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
   // not negligible on real frames, and the depth bins hold different mixes of angles (a
   // torso face-on, an arm oblique), which a fit of depth alone reads as a sigma that is
   // not monotone in depth.
-  auto g_of = [&](double z, double angle) {
-    const double th = std::min(angle, ax.theta_cap);
-    return th * th / ((std::numbers::pi / 2 - th) * (std::numbers::pi / 2 - th)) / std::sqrt(z);
-  };
+  // The model is AxialNoise::sigma itself, on points prepared once.
   struct Bin {
-    std::vector<double> z2, g;
+    std::vector<AxialNoise::Point> points;
     double y = 0;  // measured median sigma, unbiased [m]
   };
   std::vector<Bin> cells;
@@ -581,8 +574,7 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
       Bin bin;
       for (const DepthStats::Window& w : s.samples) {
         if (!in_sigma_bin(w, b, by_depth, s.depth_bin_max_angle)) continue;
-        bin.z2.push_back(w.z * w.z);
-        bin.g.push_back(g_of(w.z, w.angle));
+        bin.points.push_back(ax.point(w.z, w.angle));
       }
       double m = b.sigma;  // the median of these windows' sigma
       if (shape != nullptr) {
@@ -614,8 +606,12 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
   auto worst = [&](const Eigen::Vector3d& x, double enough) {
     double e = 0;
     for (const Bin& b : cells) {
-      model.resize(b.z2.size());
-      for (std::size_t i = 0; i < model.size(); ++i) model[i] = x[0] + x[1] * b.z2[i] + x[2] * b.g[i];
+      AxialNoise m = ax;
+      m.a = x[0];
+      m.c = x[1];
+      m.k_theta = x[2];
+      model.resize(b.points.size());
+      for (std::size_t i = 0; i < model.size(); ++i) model[i] = m.sigma(b.points[i]);
       e = std::max(e, std::abs(median_in_place(model) / b.y - 1));
       if (e >= enough) break;
     }

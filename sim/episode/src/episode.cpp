@@ -157,8 +157,10 @@ const EpisodeFrame& Episode::step_frame() {
     t0 = std::chrono::steady_clock::now();
     const FrameResult& r = o.results[k];
     o.scores[k] = score_frame(r.lost ? Nodes{} : r.nodes, o.truth_C);
+    long non_finite = 0;
+    for (const Eigen::Vector3d& q : r.nodes) non_finite += !q.allFinite();
     m.scorers[k].add(o.scores[k], r.sdf_error, r.reinit, r.time_s, m.image.link_occluded_fraction,
-                     o.truth_motion);
+                     o.truth_motion, non_finite);
     scoring += seconds_since(t0);
   }
   m.times.score = scoring;

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "linksight/tracker/quantile.hpp"
+
 namespace linksight::sim {
 
 double point_to_polyline(const Eigen::Vector3d& p, const Nodes& nodes) {
@@ -109,13 +111,10 @@ Stats Stats::of(std::vector<double> v) {
   Stats s;
   std::erase_if(v, [](double x) { return !std::isfinite(x); });
   if (v.empty()) return s;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  s.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(n);
-  s.median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-  // Nearest rank: the smallest value with at least 95% of the sample at or below it.
-  const auto rank = static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(n)));
-  s.p95 = v[std::max<std::size_t>(rank, 1) - 1];
+  std::sort(v.begin(), v.end());  // the mean sums in ascending order
+  s.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+  s.median = quantile_in_place(v, 0.5);
+  s.p95 = quantile_in_place(v, 0.95);
   s.max = v.back();
   return s;
 }
@@ -123,8 +122,9 @@ Stats Stats::of(std::vector<double> v) {
 EpisodeScorer::EpisodeScorer(const ScoreParams& params) : params_(params) { params.validate(); }
 
 void EpisodeScorer::add(const FrameScore& score, double sdf, bool reinit, double time_s,
-                        double occluded_fraction, double truth_motion) {
-  rows_.push_back({score.mean_err, sdf, score.polyline, time_s, score.swaps, score.misassigned, reinit,
+                        double occluded_fraction, double truth_motion, long non_finite_nodes) {
+  rows_.push_back({score.mean_err, sdf, score.polyline, time_s, occluded_fraction, score.swaps,
+                   score.misassigned, non_finite_nodes, reinit,
                    occluded_fraction >= params_.occlusion_from,
                    truth_motion >= params_.fast_motion_from});
 }
@@ -135,9 +135,13 @@ EpisodeSummary EpisodeScorer::summary() const {
   std::vector<double> err, time;
   double sdf = 0, poly = 0;
   int n_sdf = 0, n_poly = 0;
+  double occluded_sum = 0;
   for (const Row& r : rows_) {
     time.push_back(r.time_s);
     s.reinit_count += r.reinit;
+    occluded_sum += r.occluded_fraction;
+    s.occluded_fraction_max = std::max(s.occluded_fraction_max, r.occluded_fraction);
+    s.non_finite_nodes += r.non_finite;
     if (!std::isfinite(r.mean_err)) {
       ++s.lost_frames;
       continue;
@@ -154,6 +158,7 @@ EpisodeSummary EpisodeScorer::summary() const {
   if (s.frames > 0) {
     s.under_2mm /= s.frames;
     s.under_5mm /= s.frames;
+    s.occluded_fraction_mean = occluded_sum / s.frames;
   }
   if (n_sdf) s.mean_sdf = sdf / n_sdf;
   if (n_poly) s.mean_polyline = poly / n_poly;
@@ -186,6 +191,36 @@ EpisodeSummary EpisodeScorer::summary() const {
   std::stable_sort(s.events.begin(), s.events.end(),
             [](const Event& a, const Event& b) { return a.start < b.start; });
   return s;
+}
+
+std::vector<EpisodeMetric> episode_metrics(const EpisodeSummary& s) {
+  int recovered = 0, recover_max = -1;
+  for (const Event& e : s.events) {
+    if (e.frames_to_recover < 0) continue;
+    ++recovered;
+    recover_max = std::max(recover_max, e.frames_to_recover);
+  }
+  constexpr double mm = 1e3;  // reports in millimetres
+  return {{"frames", static_cast<double>(s.frames), true},
+          {"lost_frames", static_cast<double>(s.lost_frames), true},
+          {"node_err_mean_mm", s.node_err.mean * mm, false},
+          {"node_err_median_mm", s.node_err.median * mm, false},
+          {"node_err_p95_mm", s.node_err.p95 * mm, false},
+          {"node_err_max_mm", s.node_err.max * mm, false},
+          {"pct_frames_under_2mm", 100 * s.under_2mm, false},
+          {"pct_frames_under_5mm", 100 * s.under_5mm, false},
+          {"sdf_err_mean_mm", s.mean_sdf * mm, false},
+          {"polyline_err_mean_mm", s.mean_polyline * mm, false},
+          {"swaps", static_cast<double>(s.swaps), true},
+          {"swap_frames", static_cast<double>(s.swap_frames), true},
+          {"misassigned_nodes", static_cast<double>(s.misassigned), true},
+          {"reinit_count", static_cast<double>(s.reinit_count), true},
+          {"occluded_fraction_mean", s.occluded_fraction_mean, false},
+          {"occluded_fraction_max", s.occluded_fraction_max, false},
+          {"events", static_cast<double>(s.events.size()), true},
+          {"events_recovered", static_cast<double>(recovered), true},
+          {"recover_frames_max", recover_max < 0 ? kNaN : static_cast<double>(recover_max), true},
+          {"non_finite_nodes", static_cast<double>(s.non_finite_nodes), true}};
 }
 
 }  // namespace linksight::sim

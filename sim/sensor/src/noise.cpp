@@ -6,11 +6,12 @@
 
 namespace linksight::sim {
 
-double AxialNoise::sigma(double z, double theta) const {
+AxialNoise::Point AxialNoise::point(double z, double theta) const {
   const double th = std::min(std::abs(theta), theta_cap);
-  const double q = th / (std::numbers::pi / 2 - th);
-  return a + c * z * z + k_theta / std::sqrt(std::max(z, 1e-6)) * q * q;
+  return {z, std::sqrt(std::max(z, 1e-6)), th / (std::numbers::pi / 2 - th)};
 }
+
+double AxialNoise::sigma(double z, double theta) const { return sigma(point(z, theta)); }
 
 NoiseParams NoiseParams::off() {
   NoiseParams p;

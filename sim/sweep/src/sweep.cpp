@@ -51,18 +51,12 @@ std::string num(double v) {
   const auto r = std::to_chars(buf, buf + sizeof buf, v);
   return std::string(buf, r.ptr);
 }
-std::string num(long v) { return std::to_string(v); }
-std::string num(int v) { return std::to_string(v); }
-std::string mm(double metres) { return num(metres * 1e3); }
 
-// The deterministic metrics, in column order.
-const char* const kMetrics[] = {
-    "frames",          "lost_frames",         "node_err_mean_mm",   "node_err_median_mm",
-    "node_err_p95_mm", "node_err_max_mm",     "pct_frames_under_2mm", "pct_frames_under_5mm",
-    "sdf_err_mean_mm", "polyline_err_mean_mm", "swaps",              "swap_frames",
-    "misassigned_nodes",
-    "reinit_count",    "occluded_fraction_mean", "occluded_fraction_max", "events",
-    "events_recovered", "recover_frames_max", "non_finite_nodes"};
+// A metric as the tables write it: counts as integers, NaN as "nan".
+std::string metric_text(const EpisodeMetric& m) {
+  if (m.integer && !std::isnan(m.value)) return std::to_string(static_cast<long>(m.value));
+  return num(m.value);
+}
 const char* const kTiming[] = {"cell", "mode", "time_ms_mean", "time_ms_p95", "time_ms_max",
                                "cell_wall_s"};
 
@@ -294,7 +288,7 @@ std::vector<std::string> sweep_columns(const SweepSpec& spec) {
   std::vector<std::string> c = {"cell", "mode"};
   for (const SweepAxis& a : spec.axes) c.push_back(a.key);
   c.emplace_back("cell_seed");  // the seed the cell ran with
-  for (const char* m : kMetrics) c.emplace_back(m);
+  for (const EpisodeMetric& m : episode_metrics(EpisodeSummary{})) c.emplace_back(m.name);
   return c;
 }
 
@@ -310,15 +304,7 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
   o.chain_only_images = true;  // a cell writes numbers only, never an image
   Episode e(scene, o);
   const std::size_t m = e.modes().size();
-  std::vector<long> non_finite(m, 0);
-  double occ_sum = 0, occ_max = 0;
-  while (e.done() < e.frames()) {
-    const EpisodeFrame& f = e.step();
-    occ_sum += f.image->link_occluded_fraction;
-    occ_max = std::max(occ_max, f.image->link_occluded_fraction);
-    for (std::size_t k = 0; k < m; ++k)
-      for (const Eigen::Vector3d& q : f.results[k].nodes) non_finite[k] += !q.allFinite();
-  }
+  while (e.done() < e.frames()) (void)e.step();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::vector<EpisodeSummary> sums = e.summaries();
   std::vector<SweepRow> rows;
@@ -330,22 +316,8 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
     const std::string mode(to_string(e.modes()[k]));
     r.values = {std::to_string(index), mode};
     r.values.insert(r.values.end(), cell.values.begin(), cell.values.end());
-    int recovered = 0, recover_max = -1;
-    for (const Event& ev : s.events) {
-      if (ev.frames_to_recover < 0) continue;
-      ++recovered;
-      recover_max = std::max(recover_max, ev.frames_to_recover);
-    }
-    const std::vector<std::string> metrics = {
-        num(s.frames), num(s.lost_frames), mm(s.node_err.mean), mm(s.node_err.median),
-        mm(s.node_err.p95), mm(s.node_err.max), num(100 * s.under_2mm), num(100 * s.under_5mm),
-        mm(s.mean_sdf), mm(s.mean_polyline), num(s.swaps), num(s.swap_frames), num(s.misassigned),
-        num(s.reinit_count), num(s.frames > 0 ? occ_sum / s.frames : std::nan("")),
-        num(occ_max), num(static_cast<int>(s.events.size())), num(recovered),
-        recover_max < 0 ? std::string("nan") : num(recover_max), num(non_finite[k])};
-    static_assert(std::size(kMetrics) == 20);
     r.values.push_back(std::to_string(cell.seed));
-    r.values.insert(r.values.end(), metrics.begin(), metrics.end());
+    for (const EpisodeMetric& metric : episode_metrics(s)) r.values.push_back(metric_text(metric));
     r.timing = {std::to_string(index), mode, num(s.time.mean * 1e3), num(s.time.p95 * 1e3),
                 num(s.time.max * 1e3), num(wall)};
     rows.push_back(std::move(r));

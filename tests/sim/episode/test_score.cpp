@@ -105,7 +105,7 @@ TEST(Score, StatsOfASample) {
   const Stats s = Stats::of(v);
   EXPECT_DOUBLE_EQ(s.mean, 10.5);
   EXPECT_DOUBLE_EQ(s.median, 10.5);
-  EXPECT_DOUBLE_EQ(s.p95, 19.0);  // nearest rank: ceil(0.95 * 20) = 19th value
+  EXPECT_DOUBLE_EQ(s.p95, 19.05);  // linksight::quantile: h = 0.95 * 19, 19 + 0.05 * (20 - 19)
   EXPECT_DOUBLE_EQ(s.max, 20.0);
   EXPECT_TRUE(std::isnan(Stats::of({}).mean));
 }

@@ -112,16 +112,6 @@ struct DepthStats {
   return x >= bin.lo && x < bin.hi && !(by_depth && w.angle >= max_angle);
 }
 
-/// The q-quantile (0 <= q <= 1) of `values` by the lower nearest rank: element
-/// floor(q (n - 1)) of the sorted values; 0 when there are none.
-template <class T>
-[[nodiscard]] double quantile(std::vector<T> values, double q) {
-  if (values.empty()) return 0;
-  const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(values.size() - 1));
-  std::nth_element(values.begin(), values.begin() + k, values.end());
-  return static_cast<double>(values[static_cast<std::size_t>(k)]);
-}
-
 /// Statistics of `frames` (raw depth, 0 = invalid) with `intrinsics` (size and depth unit
 /// must match). Throws std::invalid_argument naming the problem: no frame, a size that
 /// differs from the intrinsics, no valid pixel, or too few flat windows to estimate sigma.

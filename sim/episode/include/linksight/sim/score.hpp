@@ -68,7 +68,8 @@ struct Event {
 };
 [[nodiscard]] const char* to_string(Event::Kind kind);
 
-/// Mean, median, 95th percentile (nearest rank) and maximum of a sample; NaN when empty.
+/// Mean, median, 95th percentile (linksight::quantile) and maximum of the finite values
+/// of a sample; NaN when there are none.
 struct Stats {
   double mean = kNaN, median = kNaN, p95 = kNaN, max = kNaN;
   [[nodiscard]] static Stats of(std::vector<double> values);
@@ -88,24 +89,43 @@ struct EpisodeSummary {
   int misassigned = 0;        ///< sum of misassigned nodes over frames
   Stats time;                 ///< tracker time per frame [s]
   std::vector<Event> events;
+  double occluded_fraction_mean = kNaN;  ///< of the link, over all frames
+  double occluded_fraction_max = 0;      ///< of the link, over all frames
+  long non_finite_nodes = 0;             ///< output nodes with a NaN or inf coordinate, summed
 };
 
+/// One number of an episode's summary, as `run` (summary.json) and `sweep` (the cell
+/// tables) both report it: one name (units in it: `_mm`, `pct_`), one value.
+struct EpisodeMetric {
+  const char* name;
+  double value;  ///< NaN: not defined (no tracked frame, no recovered event)
+  bool integer;  ///< a count
+};
+
+/// The deterministic metrics of `s`, in their column order: frames, lost_frames,
+/// node_err_{mean,median,p95,max}_mm, pct_frames_under_{2,5}mm, sdf_err_mean_mm,
+/// polyline_err_mean_mm, swaps, swap_frames, misassigned_nodes, reinit_count,
+/// occluded_fraction_{mean,max}, events, events_recovered, recover_frames_max,
+/// non_finite_nodes. (Timing is not among them: it differs run to run.)
+[[nodiscard]] std::vector<EpisodeMetric> episode_metrics(const EpisodeSummary& s);
+
 /// Accumulates an episode frame by frame. Holds a few numbers per frame (not clouds or
-/// images), so a long episode costs 40 bytes a frame.
+/// images), so a long episode costs 64 bytes a frame.
 class EpisodeScorer {
  public:
   explicit EpisodeScorer(const ScoreParams& params = {});  ///< validates params
   /// One frame: its score, the tracker's SDF metric, re-initialization flag and time,
   /// the link's occluded fraction and the largest true node displacement since the
-  /// previous frame [m].
+  /// previous frame [m], and how many output nodes were not finite.
   void add(const FrameScore& score, double sdf, bool reinit, double time_s,
-           double occluded_fraction, double truth_motion);
+           double occluded_fraction, double truth_motion, long non_finite_nodes = 0);
   [[nodiscard]] EpisodeSummary summary() const;
 
  private:
   struct Row {
-    double mean_err, sdf, polyline, time_s;
+    double mean_err, sdf, polyline, time_s, occluded_fraction;
     int swaps, misassigned;
+    long non_finite;
     bool reinit, occluded, fast;
   };
   ScoreParams params_;

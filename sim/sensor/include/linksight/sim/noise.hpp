@@ -25,8 +25,19 @@ struct AxialNoise {
   /// this standard deviation [px] and rescaled to unit variance, so neighbours at lag L
   /// correlate by exp(-L^2 / (4 s^2)). 0: white (every pixel its own draw).
   double correlation_px = 1.6;  ///< (fitted: the camera filters its depth)
-  /// sigma_z [m] at depth z [m] and incidence theta [rad].
+  /// sigma_z [m] at depth z [m] and incidence theta [rad]: sigma(point(z, theta)).
   [[nodiscard]] double sigma(double z, double theta) const;
+  /// What sigma needs of a point, apart from a, c and k_theta: so that a fit can try many
+  /// coefficients on the same points with this one formula.
+  struct Point {
+    double z = 0;       ///< depth [m]
+    double root_z = 0;  ///< sqrt(max(z, 1e-6)) [m^0.5]
+    double q = 0;       ///< theta' / (pi/2 - theta'), theta' = min(|theta|, theta_cap)
+  };
+  [[nodiscard]] Point point(double z, double theta) const;
+  [[nodiscard]] double sigma(const Point& p) const {
+    return a + c * p.z * p.z + k_theta / p.root_z * p.q * p.q;
+  }
 };
 
 /// Sub-pixel jitter of each ray: its pixel coordinates get N(0, sigma_px^2) each.
