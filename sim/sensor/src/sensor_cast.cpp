@@ -12,31 +12,6 @@ namespace linksight::sim {
 using detail::kMaskScene;
 using detail::set_lane;
 
-namespace {
-
-// The packets of a W x H image, row by row.
-struct Packets {
-  int per_row;
-  long count;
-  explicit Packets(int W, int H)
-      : per_row((W + kRayPacket - 1) / kRayPacket), count(static_cast<long>(per_row) * H) {}
-};
-
-}  // namespace
-
-detail::RayDirections Sensor::Impl::rays(std::uint64_t frame_seed) const {
-  const io::Intrinsics& K = p.camera.intrinsics;
-  const NoiseParams& np = p.noise;
-  detail::RayDirections d{K, p.camera.X_WC.linear().cast<float>()};
-  d.jitter = np.lateral.enabled && np.lateral.sigma_px > 0;
-  d.pinhole = K.model == io::Distortion::none;
-  d.sigma_px = np.lateral.sigma_px;
-  d.inv_fx = 1.0 / K.fx;
-  d.inv_fy = 1.0 / K.fy;
-  d.frame_seed = frame_seed;
-  return d;
-}
-
 std::vector<Eigen::AlignedBox3d> Sensor::Impl::update_scene(const std::vector<Eigen::Isometry3d>& X_WK,
                                                              double t) {
   for (int c = 0; c < count; ++c) {
@@ -78,8 +53,18 @@ FramePlan Sensor::Impl::plan(std::vector<Eigen::AlignedBox3d> moving_W, const Re
   FramePlan f;
   f.frame_seed = frame_seed;
   f.threads = p.threads > 0 ? p.threads : omp_get_max_threads();
-  const bool jitter = np.lateral.enabled && np.lateral.sigma_px > 0;
-  const double margin_px = 1.0 + (jitter ? np.lateral.sigma_px * detail::kMaxNormal32 : 0.0);
+  f.rays.K = &K;
+  f.rays.R_WC_f = p.camera.X_WC.linear().cast<float>();
+  f.rays.jitter = np.lateral.enabled && np.lateral.sigma_px > 0;
+  f.rays.pinhole = K.model == io::Distortion::none;
+  f.rays.sigma_px = np.lateral.sigma_px;
+  f.rays.inv_fx = 1.0 / K.fx;
+  f.rays.inv_fy = 1.0 / K.fy;
+  f.rays.frame_seed = frame_seed;
+  f.o_Wf = p.camera.X_WC.translation().cast<float>();
+  f.per_row = (W + kRayPacket - 1) / kRayPacket;
+  f.packets = static_cast<long>(f.per_row) * H;
+  const double margin_px = 1.0 + (f.rays.jitter ? f.rays.sigma_px * detail::kMaxNormal32 : 0.0);
   const PixelRect everything{{0, W - 1, 0, H - 1}};
   f.scene_rect = everything;
   f.moving_rect.assign(moving_W.size(), everything);
@@ -105,9 +90,8 @@ FramePlan Sensor::Impl::plan(std::vector<Eigen::AlignedBox3d> moving_W, const Re
 void Sensor::Impl::cast(const FramePlan& f, DepthFrame& out) {
   const io::Intrinsics& K = p.camera.intrinsics;
   const int W = K.width;
-  const Packets packets_of(W, K.height);
-  const int per_row = packets_of.per_row;
-  const long packets = packets_of.count;
+  const int per_row = f.per_row;
+  const long packets = f.packets;
   const std::size_t n = static_cast<std::size_t>(W) * K.height;
   // Read at hit pixels only, which the cast writes; lit defaults to 1 (only shadows clear it).
   cos_c.resize(n);
@@ -116,9 +100,9 @@ void Sensor::Impl::cast(const FramePlan& f, DepthFrame& out) {
   lit.assign(n, 1);
   const bool shadows = p.noise.shadow.enabled;
   const bool any_static = !static_box.empty();
-  const detail::RayDirections direction = rays(f.frame_seed);
-  // Rays in float, as Embree takes them.
-  const Eigen::Vector3f o_Wf = p.camera.X_WC.translation().cast<float>(), z_f = Eigen::Vector3f::UnitZ();
+  const detail::RayDirections& direction = f.rays;
+  const Eigen::Vector3f& o_Wf = f.o_Wf;
+  const Eigen::Vector3f z_f = Eigen::Vector3f::UnitZ();
   const Eigen::Vector3f P_Wf =
       (p.camera.X_WC * Eigen::Vector3d(p.noise.shadow.baseline, 0, 0)).cast<float>();
   const Eigen::Matrix3f R_CW_f = direction.R_WC_f.transpose();
@@ -223,13 +207,13 @@ void Sensor::Impl::occlusion_truth(const FramePlan& f, DepthFrame& out) {
   // Where an occluder was hit, what would be seen without it.
   const io::Intrinsics& K = p.camera.intrinsics;
   const int W = K.width, H = K.height;
-  const Packets packets_of(W, H);
-  const int per_row = packets_of.per_row;
-  const long packets = packets_of.count;
+  const int per_row = f.per_row;
+  const long packets = f.packets;
   const std::size_t n = static_cast<std::size_t>(W) * H;
   const bool any_static = !static_box.empty();
-  const detail::RayDirections direction = rays(f.frame_seed);
-  const Eigen::Vector3f o_Wf = p.camera.X_WC.translation().cast<float>(), z_f = Eigen::Vector3f::UnitZ();
+  const detail::RayDirections& direction = f.rays;
+  const Eigen::Vector3f& o_Wf = f.o_Wf;
+  const Eigen::Vector3f z_f = Eigen::Vector3f::UnitZ();
   out.visible_px.assign(count, 0);
   out.visible_px_unoccluded.assign(count, 0);
   out.occluded_fraction.assign(count, 0.0);

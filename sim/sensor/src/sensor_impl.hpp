@@ -71,8 +71,8 @@ inline void set_lane(RTCRayHit16& rh, int i, const Vec& o, const Vec& d, unsigne
 // Pixel i's ray direction in W, scaled so that its camera-frame z is 1: the hit
 // distance t is then the depth. Jittered by the lateral noise (draws from the pixel key).
 struct RayDirections {
-  const io::Intrinsics& K;
-  Eigen::Matrix3f R_WC_f;
+  const io::Intrinsics* K = nullptr;
+  Eigen::Matrix3f R_WC_f = Eigen::Matrix3f::Identity();
   bool jitter = false, pinhole = true;
   double sigma_px = 0, inv_fx = 1, inv_fy = 1;
   std::uint64_t frame_seed = 0;
@@ -86,9 +86,9 @@ struct RayDirections {
     }
     // The pinhole case inline (it is most of the per-ray cost); distortion via deproject.
     const Eigen::Vector3f d_C =
-        pinhole ? Eigen::Vector3f(static_cast<float>((u + du - K.cx) * inv_fx),
-                                  static_cast<float>((v + dv - K.cy) * inv_fy), 1.0F)
-                : K.deproject(u + du, v + dv, 1.0).cast<float>();
+        pinhole ? Eigen::Vector3f(static_cast<float>((u + du - K->cx) * inv_fx),
+                                  static_cast<float>((v + dv - K->cy) * inv_fy), 1.0F)
+                : K->deproject(u + du, v + dv, 1.0).cast<float>();
     return Eigen::Vector3f(R_WC_f * d_C);
   }
 };
@@ -99,6 +99,10 @@ struct RayDirections {
 struct FramePlan {
   std::uint64_t frame_seed = 0;
   int threads = 1;
+  detail::RayDirections rays;  // the jittered rays of this frame's pixels
+  Eigen::Vector3f o_Wf;        // their origin (the camera), in float as Embree takes it
+  int per_row = 0;             // packets of kRayPacket pixels per image row
+  long packets = 0;            // in the image
   std::vector<Eigen::AlignedBox3d> moving_W;  // world bounds: the chain, then each occluder
   // Pixels outside these rectangles cannot see anything (scene_rect), a moving body
   // (moving_rect, one per body) or the chain (chain_rect = moving_rect[0]).
@@ -155,7 +159,6 @@ struct Sensor::Impl {
   void cast(const FramePlan& f, DepthFrame& out);
   void occlusion_truth(const FramePlan& f, DepthFrame& out);
   [[nodiscard]] NoiseInput noise_input(const DepthFrame& out) const;
-  [[nodiscard]] detail::RayDirections rays(std::uint64_t frame_seed) const;
 
   ~Impl() {
     for (RTCGeometry g : chain) rtcReleaseGeometry(g);
