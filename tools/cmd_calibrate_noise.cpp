@@ -18,6 +18,7 @@
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
 #include "linksight/sim/depth_stats.hpp"
+#include "linksight/sim/scene.hpp"
 #include "linksight/tracker/quantile.hpp"
 
 namespace linksight::cli {
@@ -36,22 +37,9 @@ struct CalibrateOptions {
 std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames) {
   const sim::NoiseParams& n = fit.params;
   std::ostringstream y;
-  y << std::setprecision(10);
   y << "# linksight calibrate-noise: fitted to " << frames << " frames of " << source << "\n";
   for (const std::string& note : fit.notes) y << "# note: " << note << "\n";
-  y << "noise:\n"
-    << "  preset: sr300\n"
-    << "  axial: {a_m: " << n.axial.a << ", c_per_m: " << n.axial.c
-    << ", k_theta: " << n.axial.k_theta << ", correlation_px: " << n.axial.correlation_px
-    << "}\n"
-    << "  shadow: {baseline_m: " << n.shadow.baseline << "}\n"
-    << "  dropouts: {hole_rate: " << n.dropouts.hole_rate
-    << ", hole_median_px: " << n.dropouts.hole_median_px
-    << ", hole_p90_px: " << n.dropouts.hole_p90_px << "}\n"
-    << "  edges: {band_p1: " << n.edges.band_p1 << ", band_p2: " << n.edges.band_p2
-    << ", p_drop: " << n.edges.p_drop << ", p_flying: " << n.edges.p_flying
-    << ", flying_position: " << n.edges.flying_position
-    << ", flying_spread: " << n.edges.flying_spread << "}\n";
+  y << sim::noise_yaml(n);  // every term in full: it reads back to the same NoiseParams
   return y.str();
 }
 

@@ -46,6 +46,7 @@ struct RunOptions {
   bool figures = true;
   bool force = false;
   bool quiet = false;
+  bool print_scene = false;
 };
 
 // Statistics in report units (`unit` per SI unit: 1e3 for mm or ms).
@@ -62,8 +63,8 @@ void progress(int done, int total, double elapsed_s) {
   const int filled = total > 0 ? done * kWidth / total : kWidth;
   const double rate = elapsed_s > 0 ? done / elapsed_s : 0;
   std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] "
-            << done << "/" << total << " frames, " << fmt(rate, 1) << " frames/s";
-  if (rate > 0) std::cerr << ", " << fmt((total - done) / rate, 0) << " s left ";
+            << done << "/" << total << " frames, " << format_fixed(rate, 1) << " frames/s";
+  if (rate > 0) std::cerr << ", " << format_fixed((total - done) / rate, 0) << " s left ";
   std::cerr << std::flush;
 }
 
@@ -75,6 +76,10 @@ int run_run(const RunOptions& o) {
   if (o.overlays < 0 || o.overlays > 100)
     throw std::invalid_argument("--overlays = " + std::to_string(o.overlays) +
                                 ": must be in [0, 100]");
+  if (o.print_scene) {
+    std::cout << sim::resolved_scene_yaml(o.scene, o.set);
+    return kExitOk;
+  }
   const sim::Scene scene = sim::load_scene(o.scene, o.set);
   sim::EpisodeOptions eo;
   eo.frames = o.frames;
@@ -129,10 +134,10 @@ int run_run(const RunOptions& o) {
       const std::string mode(to_string(modes[k]));
       frames_csv << mode << ',' << f.frame << ',' << f.t << ',' << f.cloud->size() << ','
                  << f.image->link_occluded_fraction << ',' << f.truth_motion * 1e3 << ','
-                 << fmt(s.mean_err * 1e3, 4) << ',' << fmt(s.max_err * 1e3, 4) << ','
-                 << fmt(r.sdf_error * 1e3, 4) << ',' << fmt(s.polyline * 1e3, 4) << ','
+                 << format_fixed(s.mean_err * 1e3, 4) << ',' << format_fixed(s.max_err * 1e3, 4) << ','
+                 << format_fixed(r.sdf_error * 1e3, 4) << ',' << format_fixed(s.polyline * 1e3, 4) << ','
                  << s.swaps << ',' << s.reversed << ',' << r.reinit << ','
-                 << to_string(r.init_reason) << ',' << r.lost << ',' << fmt(r.time_s * 1e3, 4)
+                 << to_string(r.init_reason) << ',' << r.lost << ',' << format_fixed(r.time_s * 1e3, 4)
                  << '\n';
       if (!r.lost) {
         for (std::size_t j = 0; j < f.truth_C.size(); ++j) {
@@ -140,7 +145,7 @@ int run_run(const RunOptions& o) {
           const Eigen::Vector3d& t = f.truth_C[j];
           nodes_csv << mode << ',' << f.frame << ',' << j << ',' << e.x() << ',' << e.y() << ','
                     << e.z() << ',' << t.x() << ',' << t.y() << ',' << t.z() << ','
-                    << fmt(s.node_err[j] * 1e3, 4) << '\n';
+                    << format_fixed(s.node_err[j] * 1e3, 4) << '\n';
         }
       }
     }
@@ -232,7 +237,7 @@ int run_run(const RunOptions& o) {
   if (!figures_note.empty()) std::cerr << "linksight: warning: " << figures_note << "\n";
   if (!o.quiet) {
     std::cout << (done < n ? "interrupted after " : "ran ") << done << " frames of " << o.scene
-              << " (" << fmt(done / std::max(wall, 1e-9), 1) << " frames/s)\n";
+              << " (" << format_fixed(done / std::max(wall, 1e-9), 1) << " frames/s)\n";
     std::cout << std::left << std::setw(17) << "mode" << std::right << std::setw(10)
               << "mean_mm" << std::setw(10) << "p95_mm" << std::setw(10) << "max_mm"
               << std::setw(9) << "<5mm_%" << std::setw(8) << "reinit" << std::setw(7) << "swaps"
@@ -240,11 +245,11 @@ int run_run(const RunOptions& o) {
     for (std::size_t k = 0; k < modes.size(); ++k) {
       const sim::EpisodeSummary& s = summaries[k];
       std::cout << std::left << std::setw(17) << to_string(modes[k]) << std::right
-                << std::setw(10) << fmt(s.node_err.mean * 1e3, 2) << std::setw(10)
-                << fmt(s.node_err.p95 * 1e3, 2) << std::setw(10)
-                << fmt(s.node_err.max * 1e3, 2) << std::setw(9)
-                << fmt(100 * s.under_5mm, 1) << std::setw(8) << s.reinit_count
-                << std::setw(7) << s.swaps << std::setw(10) << fmt(s.time.mean * 1e3, 2)
+                << std::setw(10) << format_fixed(s.node_err.mean * 1e3, 2) << std::setw(10)
+                << format_fixed(s.node_err.p95 * 1e3, 2) << std::setw(10)
+                << format_fixed(s.node_err.max * 1e3, 2) << std::setw(9)
+                << format_fixed(100 * s.under_5mm, 1) << std::setw(8) << s.reinit_count
+                << std::setw(7) << s.swaps << std::setw(10) << format_fixed(s.time.mean * 1e3, 2)
                 << "\n";
     }
     std::cout << "wrote " << out.string() << "/{frames.csv,nodes.csv,summary.json}"
@@ -276,6 +281,9 @@ Runner add_run(CLI::App& app) {
   app.add_flag("!--no-figures", o->figures, "skip the figures (tools/plot_run.py)");
   app.add_flag("--force", o->force, "replace an existing output directory");
   app.add_flag("--quiet", o->quiet, "no progress bar and no summary table");
+  app.add_flag("--print-scene", o->print_scene,
+               "print the scene as read (every parameter block in full, --set applied) as "
+               "YAML and exit; it loads back to the same scene");
   return [o] { return run_run(*o); };
 }
 

@@ -85,8 +85,8 @@ void progress(std::size_t done, std::size_t total, double elapsed_s, int shard, 
   std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] "
             << done << "/" << total << " cells";
   if (count > 1) std::cerr << " (shard " << shard << "/" << count << ")";
-  std::cerr << ", " << fmt(rate, 2) << " cells/s";
-  if (rate > 0) std::cerr << ", " << fmt(static_cast<double>(total - done) / rate, 0) << " s left ";
+  std::cerr << ", " << format_fixed(rate, 2) << " cells/s";
+  if (rate > 0) std::cerr << ", " << format_fixed(static_cast<double>(total - done) / rate, 0) << " s left ";
   std::cerr << std::flush;
 }
 

@@ -11,6 +11,7 @@
 
 #include "commands.hpp"
 #include "format.hpp"
+#include "params_json.hpp"
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
@@ -166,17 +167,24 @@ int run_track(const TrackOptions& o) {
       ++sdf_n;
     }
     for (std::size_t j = 0; j < r.nodes.size(); ++j) {
-      nodes_csv << f << ',' << j << ',' << fmt(r.nodes[j].x(), 6) << ',' << fmt(r.nodes[j].y(), 6)
-                << ',' << fmt(r.nodes[j].z(), 6) << ',' << r.counts[j] << '\n';
+      nodes_csv << f << ',' << j << ',' << format_fixed(r.nodes[j].x(), 6) << ',' << format_fixed(r.nodes[j].y(), 6)
+                << ',' << format_fixed(r.nodes[j].z(), 6) << ',' << r.counts[j] << '\n';
     }
     frames_csv << f << ',' << r.n_points << ',' << r.iterations << ',' << (r.reinit ? 1 : 0) << ','
-               << (r.lost ? 1 : 0) << ',' << fmt(r.time_s * 1e3, 4) << ','
-               << fmt(r.sdf_error * 1e3, 4) << ',' << r.n_non_finite << ',' << r.n_out_of_range
+               << (r.lost ? 1 : 0) << ',' << format_fixed(r.time_s * 1e3, 4) << ','
+               << format_fixed(r.sdf_error * 1e3, 4) << ',' << r.n_non_finite << ',' << r.n_out_of_range
                << ',' << to_string(r.init_reason) << ',' << to_string(r.lost_reason) << ','
-               << fmt(r.device_time_s * 1e3, 4) << ',' << path.filename().string() << '\n';
+               << format_fixed(r.device_time_s * 1e3, 4) << ',' << path.filename().string() << '\n';
   }
   const double mean_ms = frames.empty() ? 0 : time_sum * 1e3 / static_cast<double>(frames.size());
   const double mean_sdf_mm = sdf_n ? sdf_sum * 1e3 / static_cast<double>(sdf_n) : std::nan("");
+  // The tracker's settings under the scene's `tracker` keys, then what the command adds.
+  nlohmann::json params = to_json(p);
+  params["cl_device"] = p.opencl.device;
+  params["cl_accumulation"] = o.cl_accumulation;
+  params["nodes"] = p.nodes;
+  params["pitch_m"] = p.policy.lsq_init.pitch;
+  params["seed"] = p.policy.som_init.seed;
   nlohmann::json summary = {
       {"input", o.input},
       {"frames", frames.size()},
@@ -184,18 +192,7 @@ int run_track(const TrackOptions& o) {
       {"reinit_frames", reinits},
       {"mean_time_ms", mean_ms},
       {"mean_sdf_err_mm", sdf_n ? nlohmann::json(mean_sdf_mm) : nlohmann::json(nullptr)},
-      {"params",
-       {{"mode", to_string(p.mode)},
-        {"init", o.init},
-        {"backend", to_string(p.backend)},
-        {"cl_device", p.opencl.device},
-        {"cl_accumulation", o.cl_accumulation},
-        {"threads", p.threads},
-        {"nodes", p.nodes},
-        {"iterations", p.iterations},
-        {"poly_order", p.policy.lsq_init.poly_order},
-        {"pitch_m", p.policy.lsq_init.pitch},
-        {"seed", p.policy.som_init.seed}}}};
+      {"params", params}};
   // File names need not be UTF-8: replace what JSON cannot hold rather than fail.
   staged.open(fs::path(o.out) / "summary.json")
       << summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
@@ -204,8 +201,8 @@ int run_track(const TrackOptions& o) {
   if (!o.quiet) {
     std::cout << "tracked " << frames.size() << " frames (" << lost << " lost, " << reinits
               << " re-initialized) with " << to_string(p.mode) << "/" << o.init << " on "
-              << to_string(p.backend) << ": " << fmt(mean_ms, 3) << " ms/frame, mean SDF error "
-              << fmt(mean_sdf_mm, 2) << " mm\nwrote " << o.out
+              << to_string(p.backend) << ": " << format_fixed(mean_ms, 3) << " ms/frame, mean SDF error "
+              << format_fixed(mean_sdf_mm, 2) << " mm\nwrote " << o.out
               << "/{nodes.csv,frames.csv,summary.json}\n";
   }
   return kExitOk;

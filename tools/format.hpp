@@ -1,22 +1,14 @@
 #pragma once
-// Number formatting shared by the subcommands' reports.
+// JSON numbers for the subcommands' reports; text numbers come from
+// linksight/tracker/format.hpp (format_fixed, format_shortest), the one formatter.
 
 #include <cmath>
-#include <iomanip>
-#include <sstream>
-#include <string>
 
 #include <nlohmann/json.hpp>
 
-namespace linksight::cli {
+#include "linksight/tracker/format.hpp"
 
-/// Fixed-point text with `precision` decimals; "nan" for NaN or Inf.
-inline std::string fmt(double v, int precision) {
-  if (!std::isfinite(v)) return "nan";
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(precision) << v;
-  return s.str();
-}
+namespace linksight::cli {
 
 /// A JSON number, or null for NaN or Inf (JSON has neither).
 inline nlohmann::json json_number(double v) {

@@ -160,7 +160,36 @@ TEST_F(Cli, TracksASynthSequenceAndWritesTheDocumentedColumns) {
   int rows = 0;
   for (std::string line; std::getline(nodes, line);) ++rows;
   EXPECT_EQ(rows, 6 * 12);
-  EXPECT_TRUE(fs::exists(out / "summary.json"));
+  // The settings echo: TrackerParams' field list (a scene's tracker keys), then the rest.
+  std::ifstream js(out / "summary.json");
+  const nlohmann::json params = nlohmann::json::parse(js)["params"];
+  EXPECT_EQ(params["mode"], "paper");
+  EXPECT_EQ(params["init"], "pca");
+  EXPECT_EQ(params["backend"], "openmp");
+  EXPECT_EQ(params["threads"], 2);
+  EXPECT_EQ(params["iterations"], 4);
+  EXPECT_EQ(params["tolerance_m"], 0.0);
+  EXPECT_EQ(params["nodes"], 12);
+  for (const char* key : {"poly_order", "max_points", "som_init", "cl_device", "cl_accumulation",
+                          "pitch_m", "seed"})
+    EXPECT_TRUE(params.contains(key)) << key;
+}
+
+// --print-scene: the resolved scene on stdout, loadable as it is, and nothing run.
+TEST_F(Cli, RunPrintSceneWritesTheResolvedScene) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/occluder_pass.yaml";
+  const CliRun r = run("run " + scene + " --set noise.scale=2 --set tracker.mode=accelerated-som "
+                       "--print-scene --out " + out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_NE(r.out.find("\nnoise:\n  axial:\n    enabled: true\n    a_m: 0.000108\n"),
+            std::string::npos)
+      << r.out;  // the preset's 0.054 mm, scaled: every field in full
+  EXPECT_NE(r.out.find("\n  mode: accelerated-som\n"), std::string::npos) << r.out;
+  std::ofstream(dir / "resolved.yaml") << r.out;
+  const CliRun again = run("run " + (dir / "resolved.yaml").string() + " --print-scene", dir);
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_EQ(again.out.substr(again.out.find('\n')), r.out.substr(r.out.find('\n')));
 }
 
 TEST_F(Cli, SameResultWhateverTheThreadCount) {
@@ -824,14 +853,14 @@ TEST_F(Cli, UnknownFlagAndBadValues) {
   expect_bad_input("--input " + seq.string() + " --bogus 3", "--bogus", "");
   expect_bad_input("--input " + seq.string() + " --backend cuda", "'cuda'",
                    "expected serial, openmp or opencl");
-  expect_bad_input("--input " + seq.string() + " --nodes 1", "TrackerParams.nodes = 1",
-                   "must be >= 2");
+  expect_bad_input("--input " + seq.string() + " --nodes 1", "tracker.nodes = 1",
+                   "must be in [2, 1000]");
   expect_bad_input("--input " + seq.string() + " --nodes abc", "--nodes", "");
   expect_bad_input("--input " + seq.string() + " --mode fast", "'fast'", test::expected_modes());
   expect_bad_input("--input " + seq.string() + " --threads 100000",
-                   "TrackerParams.threads = 100000", "<= 1024");
+                   "tracker.threads = 100000", "must be in [0, 1024]");
   expect_bad_input("--input " + seq.string() + " --nodes 2000000000",
-                   "TrackerParams.nodes = 2000000000", "<= 1000");
+                   "tracker.nodes = 2000000000", "must be in [2, 1000]");
   const CliRun r = run("frobnicate", dir);
   EXPECT_EQ(r.code, 2);
 }

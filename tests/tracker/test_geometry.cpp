@@ -36,16 +36,16 @@ TEST(ComponentGeometry, ValidateNamesTheField) {
   };
   ComponentGeometry g;
   g.ball_radius = -1;
-  EXPECT_NE(message(g).find("ComponentGeometry.ball_radius"), std::string::npos);
+  EXPECT_EQ(message(g), "geometry.ball_radius_m = -1: must be in [0.0001, 1]");
   g = {};
   g.neck_radius = 0.02;
-  EXPECT_NE(message(g).find("ComponentGeometry.neck_radius"), std::string::npos);
+  EXPECT_EQ(message(g), "geometry.neck_radius_m = 0.02: must be < ball_radius_m (0.015)");
   g = {};
   g.pitch = 0.01;
-  EXPECT_NE(message(g).find("ComponentGeometry.pitch"), std::string::npos);
+  EXPECT_EQ(message(g), "geometry.pitch_m = 0.01: must be > ball_radius_m (0.015)");
   g = {};
   g.count = 0;
-  EXPECT_NE(message(g).find("ComponentGeometry.count"), std::string::npos);
+  EXPECT_EQ(message(g), "geometry.count = 0: must be in [1, 100]");
 }
 
 }  // namespace

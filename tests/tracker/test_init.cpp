@@ -176,7 +176,7 @@ TEST(Init, ValidateNamesTheField) {
     p.validate();
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("InitParams.poly_order = 0"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("lsq_init.poly_order = 0: must be in [1, 9]"), std::string::npos);
   }
 }
 

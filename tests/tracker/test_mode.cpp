@@ -182,7 +182,7 @@ TEST(ModeComposition, PolicySettingsAreValidated) {
   TrackerParams p;
   p.policy.centre_offset.fraction = 1.5;
   EXPECT_EQ(test::error_of<std::invalid_argument>([&] { Tracker t(p); }),
-            "CentreOffsetParams.fraction = 1.500000: must be in [0, 1]");
+            "centre_offset.fraction = 1.5: must be in [0, 1]");
   p = {};
   p.policy.lsq_init.poly_order = 0;
   EXPECT_NE(test::error_of<std::invalid_argument>([&] { Tracker t(p); }).find("poly_order"),

@@ -380,16 +380,33 @@ TEST(TrackerParams, ValidateNamesFieldAndValue) {
   };
   TrackerParams p;
   p.nodes = 1;
-  EXPECT_EQ(message(p), "TrackerParams.nodes = 1: must be >= 2");
+  EXPECT_EQ(message(p), "tracker.nodes = 1: must be in [2, 1000]");
   p = {};
   p.iterations = 0;
-  EXPECT_EQ(message(p), "TrackerParams.iterations = 0: must be >= 1");
+  EXPECT_EQ(message(p), "tracker.iterations = 0: must be in [1, 1000]");
   p = {};
   p.threads = -2;
-  EXPECT_NE(message(p).find("TrackerParams.threads = -2"), std::string::npos);
+  EXPECT_EQ(message(p), "tracker.threads = -2: must be in [0, 1024]");
+  p = {};
+  p.tolerance = std::nan("");
+  EXPECT_EQ(message(p), "tracker.tolerance_m = nan: must be in [0, 1]");
   p = {};
   p.geometry.ball_radius = 0;
-  EXPECT_NE(message(p).find("ComponentGeometry.ball_radius"), std::string::npos);
+  EXPECT_EQ(message(p), "geometry.ball_radius_m = 0: must be in [0.0001, 1]");
+  p = {};
+  p.geometry.pitch = 0.01;
+  EXPECT_EQ(message(p), "geometry.pitch_m = 0.01: must be > ball_radius_m (0.015)");
+  // The error carries the key apart from the message, for readers to find its line.
+  p = {};
+  p.policy.lsq_init.poly_order = 12;
+  try {
+    p.validate();
+    FAIL() << "no error";
+  } catch (const fields::FieldError& e) {
+    EXPECT_EQ(e.key(), "poly_order");
+    EXPECT_EQ(e.value(), "12");
+    EXPECT_EQ(e.rule(), "must be in [1, 9]");
+  }
   EXPECT_EQ(parse_init("paper"), InitMethod::paper);
 }
 

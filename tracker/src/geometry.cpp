@@ -6,23 +6,15 @@
 #include <string>
 
 namespace linksight {
-namespace {
-void require(bool ok, const char* field, double value, const char* rule) {
-  if (!ok) {
-    throw std::invalid_argument("ComponentGeometry." + std::string(field) + " = " +
-                                std::to_string(value) + ": " + rule);
-  }
-}
-}  // namespace
-
 void ComponentGeometry::validate() const {
-  require(std::isfinite(ball_radius) && ball_radius > 0, "ball_radius", ball_radius, "must be > 0");
-  require(std::isfinite(pitch) && pitch > ball_radius, "pitch", pitch, "must be > ball_radius");
-  require(std::isfinite(neck_radius) && neck_radius > 0 && neck_radius < ball_radius, "neck_radius",
-          neck_radius, "must be in (0, ball_radius)");
-  require(std::isfinite(neck_length) && neck_length >= 0 && neck_length <= pitch, "neck_length",
-          neck_length, "must be in [0, pitch]");
-  require(count >= 1, "count", count, "must be >= 1");
+  fields::check(*this, "geometry");
+  if (!(pitch > ball_radius))
+    fields::fail("geometry", "pitch_m", pitch, "must be > ball_radius_m (" + format_shortest(ball_radius) + ")");
+  if (!(neck_radius < ball_radius))
+    fields::fail("geometry", "neck_radius_m", neck_radius,
+                 "must be < ball_radius_m (" + format_shortest(ball_radius) + ")");
+  if (!(neck_length <= pitch))
+    fields::fail("geometry", "neck_length_m", neck_length, "must be <= pitch_m (" + format_shortest(pitch) + ")");
 }
 
 double ComponentGeometry::sdf(const Eigen::Vector3d& p_K) const {

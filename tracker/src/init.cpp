@@ -168,14 +168,19 @@ Nodes init_pca(const Thinned& t, int n_nodes, int order, double pitch) {
 
 }  // namespace
 
+std::string_view to_string(InitMethod method) {
+  return method == InitMethod::paper ? "paper" : "pca";
+}
+
+InitMethod parse_init(std::string_view name) {
+  if (name == "paper") return InitMethod::paper;
+  if (name == "pca") return InitMethod::pca;
+  throw std::invalid_argument("unknown init '" + std::string(name) + "' (expected paper or pca)");
+}
+
 void InitParams::validate() const {
-  if (poly_order < 1 || poly_order > 9) {
-    throw std::invalid_argument("InitParams.poly_order = " + std::to_string(poly_order) +
-                                ": must be in [1, 9]");
-  }
-  if (!(std::isfinite(pitch) && pitch > 0)) {
-    throw std::invalid_argument("InitParams.pitch = " + std::to_string(pitch) + ": must be > 0");
-  }
+  fields::check(*this, "lsq_init");
+  if (!(std::isfinite(pitch) && pitch > 0)) fields::fail("lsq_init", "pitch", pitch, "must be > 0");
 }
 
 double Polynomial::operator()(double u) const {

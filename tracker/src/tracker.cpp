@@ -9,22 +9,10 @@
 #include "linksight/tracker/sdf.hpp"
 
 namespace linksight {
-namespace {
-[[noreturn]] void bad(const std::string& field, const std::string& value, const char* rule) {
-  throw std::invalid_argument("TrackerParams." + field + " = " + value + ": " + rule);
-}
-}  // namespace
-
 void TrackerParams::validate() const {
-  if (nodes < 2) bad("nodes", std::to_string(nodes), "must be >= 2");
-  if (nodes > kMaxNodes) bad("nodes", std::to_string(nodes), "must be <= 1000");
-  if (iterations < 1) bad("iterations", std::to_string(iterations), "must be >= 1");
-  if (iterations > kMaxIterations) bad("iterations", std::to_string(iterations), "must be <= 1000");
-  if (threads < 0) bad("threads", std::to_string(threads), "must be >= 0 (0: one per core)");
-  if (threads > kMaxThreads) bad("threads", std::to_string(threads), "must be <= 1024");
-  if (!(tolerance >= 0.0 && std::isfinite(tolerance))) {
-    bad("tolerance", std::to_string(tolerance), "must be a finite value >= 0");
-  }
+  fields::check(*this, "tracker");
+  if (nodes < 2 || nodes > kMaxNodes)
+    fields::fail("tracker", "nodes", nodes, "must be in [2, " + std::to_string(kMaxNodes) + "]");
   policy.validate();
   geometry.validate();
   opencl.validate();
@@ -55,11 +43,6 @@ std::string_view to_string(LostReason r) {
       return "too_many_points";
   }
   return "unknown";
-}
-InitMethod parse_init(std::string_view name) {
-  if (name == "paper") return InitMethod::paper;
-  if (name == "pca") return InitMethod::pca;
-  throw std::invalid_argument("unknown init '" + std::string(name) + "' (expected paper or pca)");
 }
 
 void PolicyParams::validate() const {

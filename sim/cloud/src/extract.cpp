@@ -18,26 +18,21 @@ double unit_draw(std::uint64_t& state) {
 }  // namespace
 
 void ExtractParams::validate() const {
-  auto bad = [](const std::string& field, double v, const char* rule) {
-    throw std::invalid_argument("segmentation." + field + " = " + std::to_string(v) + ": " + rule);
-  };
-  if (!(leakage >= 0 && leakage <= 1)) bad("leakage", leakage, "must be in [0, 1]");
-  if (leakage_px < 0 || leakage_px > 50) bad("leakage_px", leakage_px, "must be in [0, 50]");
-  if (!(min_depth >= 0) || !(max_depth > min_depth))
-    bad("max_depth", max_depth, "need 0 <= min_depth < max_depth");
-  if (crop_C && crop_C->isEmpty()) throw std::invalid_argument("segmentation.crop: empty box");
-  if (max_planes < 0 || max_planes > 10) bad("max_planes", max_planes, "must be in [0, 10]");
-  if (!(plane_threshold > 0)) bad("plane_threshold", plane_threshold, "must be > 0");
-  if (!(min_plane_fraction > 0 && min_plane_fraction <= 1))
-    bad("min_plane_fraction", min_plane_fraction, "must be in (0, 1]");
-  if (ransac_iterations < 1 || ransac_iterations > 100000)
-    bad("ransac_iterations", ransac_iterations, "must be in [1, 100000]");
+  fields::check(*this, "segmentation");
+  if (!(max_depth > min_depth))
+    fields::fail("segmentation", "max_depth_m", max_depth,
+                 "must be > min_depth_m (" + format_shortest(min_depth) + ")");
+  if (crop_C && crop_C->isEmpty())
+    throw fields::FieldError("crop_max_m", "[...]", "the crop box is empty", "segmentation");
 }
 
-ExtractParams::Mode ExtractParams::mode_from(const std::string& name) {
-  if (name == "truth") return Mode::truth;
-  if (name == "depth") return Mode::depth;
-  throw std::invalid_argument("segmentation mode '" + name + "': expected truth or depth");
+std::string_view to_string(ExtractMode mode) { return mode == ExtractMode::truth ? "truth" : "depth"; }
+
+ExtractMode parse_extract_mode(std::string_view name) {
+  if (name == "truth") return ExtractMode::truth;
+  if (name == "depth") return ExtractMode::depth;
+  throw std::invalid_argument("unknown segmentation mode '" + std::string(name) +
+                              "' (expected truth or depth)");
 }
 
 Cloud remove_planes(const Cloud& cloud, const ExtractParams& params, std::uint64_t seed) {

@@ -34,19 +34,14 @@ Eigen::Isometry3d look_at(const Eigen::Vector3d& eye_W, const Eigen::Vector3d& t
 }
 
 void CameraParams::validate() const {
+  fields::check(*this, "camera");
   intrinsics.validate();
-  if (!(fps > 0.0) || !std::isfinite(fps))
-    throw std::invalid_argument("camera fps = " + std::to_string(fps) + ": must be > 0");
-  if (!(z_min >= 0.0) || !(z_max > z_min) || !std::isfinite(z_max)) {
-    throw std::invalid_argument("camera depth range z_min = " + std::to_string(z_min) +
-                                " m, z_max = " + std::to_string(z_max) +
-                                " m: need 0 <= z_min < z_max < inf");
-  }
+  if (!(z_max > z_min))
+    fields::fail("camera", "z_max_m", z_max, "must be > z_min_m (" + format_shortest(z_min) + ")");
   const Eigen::Matrix3d R = X_WC.linear();
-  if (!X_WC.matrix().allFinite() || !(R.transpose() * R).isIdentity(1e-6) ||
-      !(R.determinant() > 0)) {
-    throw std::invalid_argument("camera X_WC: rotation part is not a proper rotation");
-  }
+  if (!(R.transpose() * R).isIdentity(1e-6) || !(R.determinant() > 0) ||
+      !X_WC.matrix().row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1)))
+    throw fields::FieldError("X_WC", "[...]", "rotation part is not a proper rotation", "camera");
 }
 
 }  // namespace linksight::sim

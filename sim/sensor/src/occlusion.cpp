@@ -8,16 +8,21 @@
 
 namespace linksight::sim {
 
+std::string_view to_string(OcclusionSite site) {
+  return site == OcclusionSite::middle ? "middle" : "tip";
+}
+
+OcclusionSite parse_occlusion_site(std::string_view name) {
+  if (name == "middle") return OcclusionSite::middle;
+  if (name == "tip") return OcclusionSite::tip;
+  throw std::invalid_argument("unknown occlusion site '" + std::string(name) +
+                              "' (expected middle or tip)");
+}
+
 void ScreenOcclusion::validate() const {
-  auto bad = [](const char* field, double v, const char* rule) {
-    throw std::invalid_argument(std::string("occlusion.") + field + " = " + std::to_string(v) +
-                                ": " + rule);
-  };
-  if (!(fraction >= 0 && fraction < 1)) bad("fraction", fraction, "must be in [0, 1)");
-  if (!std::isfinite(from_s) || from_s < 0) bad("from_s", from_s, "must be >= 0 s");
-  if (!(to_s > from_s) || !std::isfinite(to_s)) bad("to_s", to_s, "must be > from_s");
-  if (!(gap > 0 && gap < 1)) bad("gap_m", gap, "must be in (0, 1) m");
-  if (!(height > 0 && height < 1)) bad("height_m", height, "must be in (0, 1) m");
+  fields::check(*this, "occlusion");
+  if (!(to_s > from_s))
+    fields::fail("occlusion", "to_s", to_s, "must be > from_s (" + format_shortest(from_s) + ")");
 }
 
 namespace {
@@ -29,20 +34,17 @@ Occluder screen_occluder(const ScreenOcclusion& o, const ComponentGeometry& chai
                          const BaseTrajectory& base, const CameraParams& camera,
                          double duration_s) {
   o.validate();
-  if (!(o.fraction > 0))
-    throw std::invalid_argument("occlusion.fraction = " + std::to_string(o.fraction) +
-                                ": must be > 0 for a board");
+  if (!(o.fraction > 0)) fields::fail("occlusion", "fraction", o.fraction, "must be > 0 for a board");
   // The board must clear the link's front, or the balls poke through and it hides less.
   const double min_gap =
       std::max(chain.ball_radius, chain.neck_radius) + kHalfThickness + kClearance;
   if (!(o.gap >= min_gap))
-    throw std::invalid_argument("occlusion.gap_m = " + std::to_string(o.gap) +
-                                ": must be >= " + std::to_string(min_gap) +
-                                " m, so the board clears the balls");
+    fields::fail("occlusion", "gap_m", o.gap,
+                 "must be >= " + format_shortest(min_gap) + " m, so the board clears the balls");
   if (!(o.from_s < duration_s))
-    throw std::invalid_argument("occlusion.from_s = " + std::to_string(o.from_s) +
-                                ": must be < duration_s (" + std::to_string(duration_s) +
-                                "), or the board never appears");
+    fields::fail("occlusion", "from_s", o.from_s,
+                 "must be < duration_s (" + format_shortest(duration_s) +
+                     "), or the board never appears");
   // The link in the base frame B: ball k at (k d, 0, 0). Its silhouette runs from the
   // back of ball 0 to the end of the last component's neck.
   const double d = chain.pitch, r = chain.ball_radius;

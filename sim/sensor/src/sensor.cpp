@@ -29,6 +29,27 @@ void clear(DepthFrame& out, const io::Intrinsics& K) {
 
 }  // namespace
 
+std::string_view to_string(Shape::Kind kind) {
+  switch (kind) {
+    case Shape::Kind::box:
+      return "box";
+    case Shape::Kind::cylinder:
+      return "cylinder";
+    case Shape::Kind::sphere:
+      return "sphere";
+    case Shape::Kind::mesh:
+      return "mesh";
+  }
+  return "unknown";
+}
+
+Shape::Kind parse_shape_kind(std::string_view name) {
+  for (Shape::Kind k : {Shape::Kind::box, Shape::Kind::cylinder, Shape::Kind::sphere, Shape::Kind::mesh})
+    if (name == to_string(k)) return k;
+  throw std::invalid_argument("unknown shape '" + std::string(name) +
+                              "' (expected box, cylinder, sphere or mesh)");
+}
+
 void Shape::validate() const {
   switch (kind) {
     case Kind::box:

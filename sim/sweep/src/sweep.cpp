@@ -1,6 +1,5 @@
 #include "linksight/sim/sweep.hpp"
 
-#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <charconv>
@@ -18,6 +17,8 @@
 #include "linksight/io/error.hpp"
 #include "linksight/sim/episode.hpp"
 #include "linksight/sim/scene.hpp"
+#include "linksight/sim/yaml.hpp"
+#include "linksight/tracker/format.hpp"
 #include "linksight/tracker/seed.hpp"
 
 namespace linksight::sim {
@@ -42,20 +43,11 @@ std::string trim(const std::string& s) {
   return s.substr(b, s.find_last_not_of(" \t") - b + 1);
 }
 
-// Shortest decimal text that reads back as the same double: the same bits give the same
-// bytes, on any machine.
-std::string num(double v) {
-  if (std::isnan(v)) return "nan";
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
 
 // A metric as the tables write it: counts as integers, NaN as "nan".
 std::string metric_text(const EpisodeMetric& m) {
   if (m.integer && !std::isnan(m.value)) return std::to_string(static_cast<long>(m.value));
-  return num(m.value);
+  return format_shortest(m.value);
 }
 const char* const kTiming[] = {"cell", "mode", "time_ms_mean", "time_ms_p95", "time_ms_max",
                                "cell_wall_s"};
@@ -162,40 +154,25 @@ SweepAxis parse_axis(const std::string& arg) {
 }
 
 std::vector<SweepAxis> read_grid(const fs::path& file) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(file.string());
-  } catch (const YAML::BadFile&) {
-    throw io::InputError(file.string() + ": cannot be read");
-  } catch (const YAML::Exception& e) {
-    throw io::InputError(file.string() + ":" + std::to_string(e.mark.line + 1) +
-                         ": not valid YAML: " + e.msg);
-  }
-  const auto where = [&](const YAML::Node& n) {
-    return file.string() + ":" + std::to_string(n.Mark().line + 1) + ": ";
-  };
+  const YAML::Node root = yaml::load_file(file, "grid");
+  const yaml::Reader r(file.string());
   if (!root.IsMap() || !root["axes"])
     throw io::InputError(file.string() + ": expected a map with the key 'axes'");
-  for (const auto& kv : root)
-    if (kv.first.as<std::string>() != "axes")
-      throw io::InputError(where(kv.first) + kv.first.as<std::string>() +
-                           ": unknown key (expected axes)");
+  r.only(root, "", {"axes"});
   const YAML::Node axes = root["axes"];
   if (!axes.IsSequence() || axes.size() == 0)
-    throw io::InputError(where(axes) + "axes: expected a non-empty list of {key: [values]}");
+    r.fail(axes, "axes", "expected a non-empty list of {key: [values]}");
   std::vector<SweepAxis> out;
   for (const YAML::Node& item : axes) {
-    if (!item.IsMap() || item.size() != 1)
-      throw io::InputError(where(item) + "axes: each item is one key: [values]");
+    if (!item.IsMap() || item.size() != 1) r.fail(item, "axes", "each item is one key: [values]");
     const auto kv = *item.begin();
     SweepAxis a;
-    a.key = kv.first.as<std::string>();
+    a.key = r.key_text(kv.first, "axes");
     if (!kv.second.IsSequence() || kv.second.size() == 0)
-      throw io::InputError(where(kv.second) + a.key + ": expected a non-empty list of values");
+      r.fail(kv.second, a.key, "expected a non-empty list of values");
     for (const YAML::Node& v : kv.second) {
-      if (!v.IsScalar())
-        throw io::InputError(where(v) + a.key + ": values must be scalars");
-      a.values.push_back(v.as<std::string>());
+      if (!v.IsScalar()) r.fail(v, a.key, "values must be scalars");
+      a.values.push_back(v.Scalar());
     }
     out.push_back(std::move(a));
   }
@@ -230,7 +207,7 @@ void SweepSpec::validate() const {
   double n = 1;
   for (const SweepAxis& a : axes) n *= static_cast<double>(a.values.size());
   if (n > static_cast<double>(kMaxSweepCells))
-    throw std::invalid_argument("sweep: " + num(n) + " cells: at most " +
+    throw std::invalid_argument("sweep: " + format_shortest(n) + " cells: at most " +
                                 std::to_string(kMaxSweepCells));
 }
 
@@ -318,8 +295,8 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
     r.values.insert(r.values.end(), cell.values.begin(), cell.values.end());
     r.values.push_back(std::to_string(cell.seed));
     for (const EpisodeMetric& metric : episode_metrics(s)) r.values.push_back(metric_text(metric));
-    r.timing = {std::to_string(index), mode, num(s.time.mean * 1e3), num(s.time.p95 * 1e3),
-                num(s.time.max * 1e3), num(wall)};
+    r.timing = {std::to_string(index), mode, format_shortest(s.time.mean * 1e3), format_shortest(s.time.p95 * 1e3),
+                format_shortest(s.time.max * 1e3), format_shortest(wall)};
     rows.push_back(std::move(r));
   }
   return rows;

@@ -63,29 +63,14 @@ double ChainParams::worst_gravity_torque(double g) const {
 }
 
 void ChainParams::validate() const {
+  fields::check(*this, "chain");
   geometry.validate();
-  if (geometry.pitch < 2 * geometry.ball_radius) {
-    bad("ChainParams", "geometry.pitch", geometry.pitch,
-        "must be >= 2 * ball_radius (balls would overlap)");
-  }
-  if (!(component_mass > 0 && std::isfinite(component_mass))) {
-    bad("ChainParams", "component_mass", component_mass, "must be > 0");
-  }
-  if (!(preload_force >= 0 && std::isfinite(preload_force))) {
-    bad("ChainParams", "preload_force", preload_force, "must be >= 0");
-  }
-  if (!(friction_coefficient >= 0 && std::isfinite(friction_coefficient))) {
-    bad("ChainParams", "friction_coefficient", friction_coefficient, "must be >= 0");
-  }
-  if (!(cone_limit > 0 && cone_limit < std::numbers::pi / 2)) {
-    bad("ChainParams", "cone_limit", cone_limit, "must be in (0, pi/2) rad");
-  }
+  if (geometry.pitch < 2 * geometry.ball_radius)
+    fields::fail("chain", "pitch_m", geometry.pitch,
+                 "must be >= 2 * ball_radius_m (balls would overlap)");
 }
 
-void WorldParams::validate() const {
-  if (!(dt > 0 && dt <= 0.01)) bad("WorldParams", "dt", dt, "must be in (0, 0.01] s");
-  if (!(g >= 0 && std::isfinite(g))) bad("WorldParams", "g", g, "must be >= 0");
-}
+void WorldParams::validate() const { fields::check(*this, "world"); }
 
 struct World::Impl {
   ChainParams chain;
@@ -234,11 +219,7 @@ void World::set_base_pose(const Eigen::Isometry3d& X_WB) {
   s.body->updateCollisionObjectWorldTransforms(scratch_q, scratch_m);
 }
 
-void PusherParams::validate() const {
-  if (!(radius > 0 && std::isfinite(radius))) bad("PusherParams", "radius", radius, "must be > 0");
-  if (!(length >= 0 && std::isfinite(length)))
-    bad("PusherParams", "length", length, "must be >= 0");
-}
+void PusherParams::validate() const { fields::check(*this, "pusher"); }
 
 void ObstacleParams::validate() const {
   if (!(half_extents.minCoeff() > 0 && half_extents.allFinite())) {

@@ -120,7 +120,7 @@ TEST(Extract, BadParametersAreNamed) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("leakage"), std::string::npos);
   }
-  EXPECT_THROW((void)ExtractParams::mode_from("colour"), std::invalid_argument);
+  EXPECT_THROW((void)parse_extract_mode("colour"), std::invalid_argument);
 }
 
 }  // namespace

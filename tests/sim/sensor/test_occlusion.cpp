@@ -115,9 +115,9 @@ TEST(Occlusion, BadKeysAreNamed) {
     }
     return std::string("no error");
   };
-  EXPECT_NE(error_of("occlusion: {fraction: 1.2}\n").find("occlusion.fraction: 1.200000 is out of range"),
+  EXPECT_NE(error_of("occlusion: {fraction: 1.2}\n").find(":1: occlusion.fraction = 1.2: must be in [0, 0.95]"),
             std::string::npos);
-  EXPECT_NE(error_of("occlusion: {at: base}\n").find("occlusion.at: 'base' is not one of middle, tip"),
+  EXPECT_NE(error_of("occlusion: {at: base}\n").find("occlusion.at: unknown occlusion site 'base' (expected middle or tip)"),
             std::string::npos);
   EXPECT_NE(error_of("occlusion: {from_s: 2, to_s: 1}\n").find("occlusion.to_s"), std::string::npos);
   EXPECT_NE(error_of("occlusion: {size: 3}\n").find("occlusion.size: unknown key"), std::string::npos);
@@ -128,14 +128,14 @@ TEST(Occlusion, BadKeysAreNamed) {
             std::string::npos);
   // A board inside the balls would hide less than asked.
   EXPECT_NE(error_of("occlusion: {fraction: 0.2, gap_m: 0.01}\n")
-                .find(":1: occlusion.gap_m: 0.010000: must be >= 0.022000 m"),
+                .find(":1: occlusion.gap_m = 0.01: must be >= 0.022 m, so the board clears the balls"),
             std::string::npos)
       << error_of("occlusion: {fraction: 0.2, gap_m: 0.01}\n");
   EXPECT_NE(error_of("duration_s: 1\nocclusion: {fraction: 0.2, from_s: 1.5, to_s: 2}\n")
-                .find("occlusion.from_s: 1.500000: must be < duration_s"),
+                .find(":2: occlusion.from_s = 1.5: must be < duration_s (1)"),
             std::string::npos);
   EXPECT_NE(error_of("occluders:\n  - {from_s: 2, to_s: 1}\n")
-                .find("occluders[0].to_s: 1.000000 must be > from_s (2.000000)"),
+                .find("occluders[0].to_s = 1: must be > from_s (2)"),
             std::string::npos);
   EXPECT_EQ(error_of("occlusion: {fraction: 0.2, at: tip, gap_m: 0.1, height_m: 0.05}\n"), "no error");
 }

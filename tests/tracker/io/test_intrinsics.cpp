@@ -66,7 +66,7 @@ TEST_F(IntrinsicsFile, Errors) {
   EXPECT_NE(error_of(neg).find("intrinsics.fx"), std::string::npos);
   std::string model = kGood;
   model.insert(model.size() - 1, R"(, "model": "fisheye", "coeffs": [0,0,0,0,0])");
-  EXPECT_NE(error_of(model).find("unknown value 'fisheye'"), std::string::npos);
+  EXPECT_NE(error_of(model).find("key 'model': unknown distortion model 'fisheye' (expected none, brown_conrady or inverse_brown_conrady)"), std::string::npos);
   std::string coeffs = kGood;
   coeffs.insert(coeffs.size() - 1, R"(, "model": "brown_conrady", "coeffs": [0,0,0])");
   EXPECT_NE(error_of(coeffs).find("array of 5 numbers"), std::string::npos);

@@ -45,6 +45,26 @@ Eigen::Vector2d invert_brown_conrady(const Eigen::Vector2d& d, const std::array<
 }
 }  // namespace
 
+std::string_view to_string(Distortion model) {
+  switch (model) {
+    case Distortion::none:
+      return "none";
+    case Distortion::brown_conrady:
+      return "brown_conrady";
+    case Distortion::inverse_brown_conrady:
+      return "inverse_brown_conrady";
+  }
+  return "unknown";
+}
+
+Distortion parse_distortion(std::string_view name) {
+  for (Distortion d :
+       {Distortion::none, Distortion::brown_conrady, Distortion::inverse_brown_conrady})
+    if (name == to_string(d)) return d;
+  throw std::invalid_argument("unknown distortion model '" + std::string(name) +
+                              "' (expected none, brown_conrady or inverse_brown_conrady)");
+}
+
 void Intrinsics::validate() const {
   auto bad = [](const std::string& field, double v, const char* rule) {
     throw std::invalid_argument("intrinsics." + field + " = " + std::to_string(v) + ": " + rule);
@@ -114,15 +134,11 @@ Intrinsics read_intrinsics(const std::filesystem::path& path) {
   k.depth_scale = number("depth_scale");
   if (j.contains("model")) {
     if (!j["model"].is_string()) throw InputError(file + ": key 'model' must be a string");
-    const std::string m = j["model"].get<std::string>();
-    if (m == "none")
-      k.model = Distortion::none;
-    else if (m == "brown_conrady")
-      k.model = Distortion::brown_conrady;
-    else if (m == "inverse_brown_conrady")
-      k.model = Distortion::inverse_brown_conrady;
-    else
-      throw InputError(file + ": key 'model' has unknown value '" + m + "'");
+    try {
+      k.model = parse_distortion(j["model"].get<std::string>());
+    } catch (const std::invalid_argument& e) {
+      throw InputError(file + ": key 'model': " + e.what());
+    }
   }
   if (j.contains("coeffs")) {
     const auto& c = j["coeffs"];
@@ -150,7 +166,7 @@ void write_intrinsics(const std::filesystem::path& path, const Intrinsics& k) {
       {"width", k.width}, {"height", k.height},          {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx},
       {"cy", k.cy},       {"depth_scale", k.depth_scale}};
   if (k.model != Distortion::none) {
-    j["model"] = k.model == Distortion::brown_conrady ? "brown_conrady" : "inverse_brown_conrady";
+    j["model"] = to_string(k.model);
     j["coeffs"] = k.coeffs;
   }
   write_file_atomic(path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });

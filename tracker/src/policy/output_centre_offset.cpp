@@ -8,11 +8,7 @@
 
 namespace linksight {
 
-void CentreOffsetParams::validate() const {
-  if (!(std::isfinite(fraction) && fraction >= 0.0 && fraction <= 1.0))
-    throw std::invalid_argument("CentreOffsetParams.fraction = " + std::to_string(fraction) +
-                                ": must be in [0, 1]");
-}
+void CentreOffsetParams::validate() const { fields::check(*this, "centre_offset"); }
 
 namespace {
 

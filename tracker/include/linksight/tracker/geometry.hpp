@@ -4,6 +4,8 @@
 
 #include <Eigen/Core>
 
+#include "linksight/tracker/fields.hpp"
+
 namespace linksight {
 
 /// One rigid ball-and-socket component of the deformable link, in its local
@@ -16,7 +18,16 @@ struct ComponentGeometry {
   double neck_length = 0.030;  ///< capsule axis length from the ball centre along +Z [m]
   int count = 11;              ///< number of components in the link
 
-  /// Throws std::invalid_argument naming the offending field.
+  /// The keys of a scene's `chain` block (fields.hpp).
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("ball_radius_m", ball_radius, fields::in(1e-4, 1));
+    ar("pitch_m", pitch, fields::in(1e-4, 1));
+    ar("neck_radius_m", neck_radius, fields::in(1e-4, 1));
+    ar("neck_length_m", neck_length, fields::in(0, 1));
+    ar("count", count, fields::in(1, 100));
+  }
+  /// Throws fields::FieldError naming the offending key.
   void validate() const;
 
   /// Signed distance [m] from a point in the component frame K to the surface of

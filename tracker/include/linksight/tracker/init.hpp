@@ -7,6 +7,7 @@
 #include <span>
 #include <string_view>
 
+#include "linksight/tracker/fields.hpp"
 #include "linksight/tracker/model.hpp"
 
 namespace linksight {
@@ -22,12 +23,23 @@ enum class InitMethod {
   pca,    ///< polynomial in the principal-axis frame, sampled at the component pitch
 };
 
+/// "paper" / "pca"; parse throws std::invalid_argument naming the value and the choices.
+[[nodiscard]] std::string_view to_string(InitMethod method);
+[[nodiscard]] InitMethod parse_init(std::string_view name);
+
 struct InitParams {
   InitMethod method = InitMethod::pca;
   int poly_order = 3;             ///< polynomial order m of Eq. 9
   std::size_t max_points = 4000;  ///< thin the cloud to at most this many points (0: all)
   double pitch = 0.045;           ///< node spacing along the curve for `pca` [m]
-  void validate() const;          ///< throws std::invalid_argument naming the field
+  /// The keys in a scene's `tracker` block (pitch is the chain's, not a key).
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("init", method, parse_init);
+    ar("poly_order", poly_order, fields::in(1, 9));
+    ar("max_points", max_points, fields::in(0, 1e7));
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
 };
 
 /// LSQ initialization: `n_nodes` ordered reference vectors. When `previous` is given

@@ -67,7 +67,12 @@ struct PolicyRef {
 /// The accelerated-SOM baseline's initialization (Croom 2010 / Baader 1994).
 struct SomInitParams {
   SomInit method = SomInit::straight_line;
-  std::uint64_t seed = 0;  ///< feeds SomInit::random_sample only
+  std::uint64_t seed = 0;  ///< feeds SomInit::random_sample only (the scene's, not a key)
+  /// The key in a scene's `tracker` block.
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("som_init", method, parse_som_init);
+  }
   void validate() const {}
 };
 
@@ -79,7 +84,11 @@ inline constexpr double kCentreOffset = 2.0 / 3.0;  ///< of the ball radius
 /// Output moved from the seen surface to the ball centres (not in the paper).
 struct CentreOffsetParams {
   double fraction = kCentreOffset;  ///< of the ball radius, along each node's viewing ray
-  void validate() const;            ///< throws std::invalid_argument naming the field
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("fraction", fraction, fields::in(0, 1));
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
 };
 
 /// Every policy's settings; a mode reads those of its own policies.

@@ -34,7 +34,20 @@ struct TrackerParams {
   bool compute_sdf = true;  ///< fill FrameResult::sdf_error (not counted in time_s)
   ComponentGeometry geometry;
 
-  /// Throws std::invalid_argument naming the offending field and value.
+  /// The keys of a scene's `tracker` block (fields.hpp). nodes, geometry, the LSQ pitch
+  /// and the SOM seed come from the scene's chain and seed; opencl and compute_sdf from
+  /// the command line.
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("mode", mode, parse_mode);
+    policy.lsq_init.fields(ar);  // init, poly_order, max_points
+    policy.som_init.fields(ar);  // som_init
+    ar("backend", backend, parse_backend);
+    ar("threads", threads, fields::in(0, kMaxThreads));
+    ar("iterations", iterations, fields::in(1, kMaxIterations));
+    ar("tolerance_m", tolerance, fields::in(0, 1));
+  }
+  /// Throws fields::FieldError naming the offending key and value.
   void validate() const;
 };
 
@@ -54,7 +67,6 @@ enum class LostReason : std::uint8_t {
 
 [[nodiscard]] std::string_view to_string(InitReason reason);
 [[nodiscard]] std::string_view to_string(LostReason reason);
-[[nodiscard]] InitMethod parse_init(std::string_view name);  ///< throws naming the value
 
 /// Output of one frame.
 struct FrameResult {

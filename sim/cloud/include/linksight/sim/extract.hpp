@@ -7,19 +7,26 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/intrinsics.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "linksight/tracker/cloud.hpp"
+#include "linksight/tracker/fields.hpp"
 
 namespace linksight::sim {
 
+enum class ExtractMode {
+  truth,  ///< keep the link's pixels by label (a perfect colour+depth segmentation) ...
+  depth,  ///< no labels: depth range, crop box, then RANSAC removal of large planes
+};
+/// "truth" / "depth"; parse throws std::invalid_argument naming the value and choices.
+[[nodiscard]] std::string_view to_string(ExtractMode mode);
+[[nodiscard]] ExtractMode parse_extract_mode(std::string_view name);
+
 struct ExtractParams {
-  enum class Mode {
-    truth,  ///< keep the link's pixels by label (a perfect colour+depth segmentation) ...
-    depth,  ///< no labels: depth range, crop box, then RANSAC removal of large planes
-  };
+  using Mode = ExtractMode;
   Mode mode = Mode::truth;
   /// truth: keep this fraction of non-link pixels within leakage_px of the link's
   /// silhouette (imperfect segmentation leaks background and occluder points in).
@@ -33,9 +40,21 @@ struct ExtractParams {
   double min_plane_fraction = 0.1;  ///< depth: a plane must hold this fraction of the points
   int ransac_iterations = 200;      ///< depth: hypotheses per plane
 
-  void validate() const;  ///< throws std::invalid_argument naming the field
-  /// "truth" or "depth"; throws std::invalid_argument otherwise.
-  [[nodiscard]] static Mode mode_from(const std::string& name);
+  /// The keys of the scene's `segmentation` block (fields.hpp); crop_min_m and
+  /// crop_max_m there are read as a pair into crop_C, not fields.
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("mode", mode, parse_extract_mode);
+    ar("leakage", leakage, fields::in(0, 1));
+    ar("leakage_px", leakage_px, fields::in(0, 50));
+    ar("min_depth_m", min_depth, fields::in(0, 100));
+    ar("max_depth_m", max_depth, fields::in(0, 100));  // and > min_depth_m
+    ar("max_planes", max_planes, fields::in(0, 10));
+    ar("plane_threshold_m", plane_threshold, fields::in(1e-5, 1));
+    ar("min_plane_fraction", min_plane_fraction, fields::in(1e-3, 1));
+    ar("ransac_iterations", ransac_iterations, fields::in(1, 100000));
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
 };
 
 /// The cloud [m, C] of a rendered frame. Random choices (leakage, RANSAC) come from

@@ -56,6 +56,17 @@ struct Scene {
 [[nodiscard]] Scene load_scene(const std::filesystem::path& path,
                                const std::vector<std::string>& overrides = {});
 
+/// The scene as load_scene reads it, as YAML that loads to the same Scene: every
+/// parameter block (camera, noise, segmentation, chain, world, occlusion, tracker) in
+/// full from its field list, the lists (base, occluders, background, actions) as given.
+/// `linksight run --print-scene`. Throws as load_scene.
+[[nodiscard]] std::string resolved_scene_yaml(const std::filesystem::path& path,
+                                              const std::vector<std::string>& overrides = {});
+
+/// A scene's `noise:` block in full (calibrate-noise's output), from NoiseParams' field
+/// list; it loads back to the same NoiseParams.
+[[nodiscard]] std::string noise_yaml(const NoiseParams& noise);
+
 /// Builds the world of a scene at t = 0.
 [[nodiscard]] std::unique_ptr<World> make_world(const Scene& scene);
 

@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 
 #include "linksight/io/intrinsics.hpp"
+#include "linksight/tracker/fields.hpp"
 
 namespace linksight::sim {
 
@@ -39,8 +40,27 @@ struct CameraParams {
   double fps = 30.0;   ///< frame rate [1/s] (SR300: 30 or 60)
   double z_min = 0.2;  ///< nearest valid depth [m] (SR300: 0.2)
   double z_max = 1.5;  ///< farthest valid depth [m] (SR300: 1.5)
-  /// Throws std::invalid_argument naming the field (fx <= 0, zero resolution,
-  /// z_min >= z_max, a non-rigid X_WC, ...).
+  /// The keys of the scene's `camera` block (fields.hpp); `preset` and `look_at` there
+  /// are read, not fields (look_at sets X_WC).
+  template <class Archive>
+  void fields(Archive& ar) {
+    io::Intrinsics& k = intrinsics;
+    ar("fps", fps, fields::in(1, 1000));
+    ar("width", k.width, fields::in(1, 8192));
+    ar("height", k.height, fields::in(1, 8192));
+    ar("fx", k.fx, fields::in(1e-3, 1e5));
+    ar("fy", k.fy, fields::in(1e-3, 1e5));
+    ar("cx", k.cx, fields::in(-1e5, 1e5));
+    ar("cy", k.cy, fields::in(-1e5, 1e5));
+    ar("depth_scale_m", k.depth_scale, fields::in(1e-7, 1));
+    ar("distortion", k.model, io::parse_distortion);
+    ar("coeffs", k.coeffs);
+    ar("z_min_m", z_min, fields::in(0, 100));
+    ar("z_max_m", z_max, fields::in(0, 100));  // and > z_min_m
+    ar("X_WC", X_WC);
+  }
+  /// Throws fields::FieldError naming the key (fx <= 0, zero resolution, z_min >= z_max,
+  /// a non-rigid X_WC, ...).
   void validate() const;
 };
 

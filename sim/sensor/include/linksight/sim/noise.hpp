@@ -8,6 +8,8 @@
 #include <numbers>
 #include <string>
 
+#include "linksight/tracker/fields.hpp"
+
 namespace linksight::sim {
 
 /// Axial (along the optical axis) Gaussian noise:
@@ -38,6 +40,16 @@ struct AxialNoise {
   [[nodiscard]] double sigma(const Point& p) const {
     return a + c * p.z * p.z + k_theta / p.root_z * p.q * p.q;
   }
+  /// The keys of the scene's `noise.axial` block (fields.hpp).
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("enabled", enabled);
+    ar("a_m", a, fields::in(0, 0.1));
+    ar("c_per_m", c, fields::in(0, 0.1));
+    ar("k_theta", k_theta, fields::in(0, 0.1));
+    ar("theta_cap_deg", theta_cap, fields::deg(fields::in(0, 89.9)));
+    ar("correlation_px", correlation_px, fields::in(0, 10));
+  }
 };
 
 /// Sub-pixel jitter of each ray: its pixel coordinates get N(0, sigma_px^2) each.
@@ -46,6 +58,11 @@ struct LateralNoise {
   /// [px] (estimate, bounded by the data: with 0.5 px the residual correlation at 1 px
   /// falls to 0.7, the real frames read 0.83)
   double sigma_px = 0.1;
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("enabled", enabled);
+    ar("sigma_px", sigma_px, fields::in(0, 10));
+  }
 };
 
 /// The projector of a structured-light camera sits at `baseline` along the camera's +x
@@ -55,6 +72,11 @@ struct ProjectorShadow {
   /// [m], signed (negative: projector on the camera's -x side; fitted: the shadows fall
   /// on the image-right of foreground objects, 63 mm)
   double baseline = -0.063;
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("enabled", enabled);
+    ar("baseline_m", baseline, fields::in(-1, 1));
+  }
 };
 
 /// Pixels the camera cannot decode.
@@ -72,6 +94,15 @@ struct Dropouts {
   double hole_median_px = 2.0;  ///< [px] of area (fitted)
   double hole_p90_px = 19.0;    ///< [px] of area, >= hole_median_px (fitted)
   static constexpr int kMaxHolePx = 1000;
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("enabled", enabled);
+    ar("max_incidence_deg", max_incidence, fields::deg(fields::in(0.1, 90)));
+    ar("min_signal", min_signal, fields::in(0, 1e6));
+    ar("hole_rate", hole_rate, fields::in(0, 1e4));
+    ar("hole_median_px", hole_median_px, fields::in(1, kMaxHolePx));
+    ar("hole_p90_px", hole_p90_px, fields::in(1, kMaxHolePx));  // and >= hole_median_px
+  }
 };
 
 /// Depth discontinuities, where two 4-neighbours' noise-free depths differ by more than
@@ -90,6 +121,17 @@ struct EdgeEffects {
   double p_flying = 0.10;          ///< (fitted, given p_drop)
   double flying_position = 0.42;   ///< mean of u (fitted)
   double flying_spread = 0.46;     ///< half-width of u's range (fitted)
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("enabled", enabled);
+    ar("jump_m", jump, fields::in(1e-6, 10));
+    ar("band_p1", band_p1, fields::in(0, 1));
+    ar("band_p2", band_p2, fields::in(0, 1));
+    ar("p_drop", p_drop, fields::in(0, 1));
+    ar("p_flying", p_flying, fields::in(0, 1));
+    ar("flying_position", flying_position, fields::in(0, 1));
+    ar("flying_spread", flying_spread, fields::in(0, 1));
+  }
 };
 
 struct NoiseParams {
@@ -107,7 +149,18 @@ struct NoiseParams {
   [[nodiscard]] static NoiseParams sr300();
   /// "off" or "sr300"; throws std::invalid_argument naming the preset otherwise.
   [[nodiscard]] static NoiseParams preset(const std::string& name);
-  /// Throws std::invalid_argument naming the field.
+  /// The keys of the scene's `noise` block; `preset` and `scale` there are read, not
+  /// fields: a preset is where the block starts, a scale multiplies the random terms.
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("axial", axial);
+    ar("lateral", lateral);
+    ar("shadow", shadow);
+    ar("dropouts", dropouts);
+    ar("edges", edges);
+    ar("quantize", quantize);
+  }
+  /// Throws fields::FieldError naming the key ("noise.axial.a_m = ...").
   void validate() const;
 };
 

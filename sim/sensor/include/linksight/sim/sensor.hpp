@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <string_view>
 #include <vector>
 
 #include "linksight/io/depth_png.hpp"
@@ -40,6 +41,10 @@ struct Shape {
   /// The triangles; throws linksight::io::InputError naming a missing or bad mesh file.
   [[nodiscard]] TriangleMesh triangles() const;
 };
+/// "box", "cylinder", "sphere", "mesh"; parse throws std::invalid_argument naming the
+/// value and the choices.
+[[nodiscard]] std::string_view to_string(Shape::Kind kind);
+[[nodiscard]] Shape::Kind parse_shape_kind(std::string_view name);
 
 /// Something between the camera and the link, moving along a scripted pose path.
 struct Occluder {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "linksight/sim/trajectory.hpp"
+#include "linksight/tracker/fields.hpp"
 #include "linksight/tracker/geometry.hpp"
 #include "linksight/tracker/model.hpp"
 
@@ -29,7 +30,16 @@ struct ChainParams {
   [[nodiscard]] double holding_torque() const;
   /// Gravity torque at the base joint with the chain horizontal: the worst case [N m].
   [[nodiscard]] double worst_gravity_torque(double g = 9.81) const;
-  /// Throws std::invalid_argument naming the parameter.
+  /// The keys of the scene's `chain` block (fields.hpp): the geometry's, then these.
+  template <class Archive>
+  void fields(Archive& ar) {
+    geometry.fields(ar);
+    ar("component_mass_kg", component_mass, fields::in(1e-6, 100));
+    ar("preload_n", preload_force, fields::in(0, 1e6));
+    ar("friction", friction_coefficient, fields::in(0, 10));
+    ar("cone_limit_deg", cone_limit, fields::deg(fields::in(0.1, 89.9)));
+  }
+  /// Throws fields::FieldError naming the key.
   void validate() const;
 };
 
@@ -37,7 +47,14 @@ struct WorldParams {
   double dt = 0.001;  ///< physics step [s] (1 kHz)
   bool gravity = true;
   double g = 9.81;        ///< [m/s^2], along -z of W
-  void validate() const;  ///< throws std::invalid_argument naming the parameter
+  /// The keys of the scene's `world` block (fields.hpp).
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("dt_s", dt, fields::in(1e-5, 0.01));
+    ar("gravity", gravity);
+    ar("g", g, fields::in(0, 100));
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
 };
 
 /// A force on one component's ball centre, and a torque on it, over a time window.
@@ -60,7 +77,13 @@ struct PusherParams {
   double radius = 0.01;  ///< [m]
   double length = 0.0;   ///< capsule's cylinder length [m]; 0: a sphere
   BaseTrajectory path;   ///< pose of the pusher in W over time
-  void validate() const;
+  /// The keys of an `actions.pushers` item (fields.hpp); its `path` is read, not a field.
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("radius_m", radius, fields::in(1e-4, 1));
+    ar("length_m", length, fields::in(0, 2));
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
 };
 
 /// A static box the chain can be pressed against.

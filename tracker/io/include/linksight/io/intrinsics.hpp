@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <filesystem>
+#include <string_view>
 
 namespace linksight::io {
 
@@ -12,6 +13,10 @@ enum class Distortion {
   brown_conrady,          ///< coefficients map undistorted → distorted (inverted iteratively)
   inverse_brown_conrady,  ///< coefficients map distorted → undistorted (RealSense SR300 depth)
 };
+/// "none", "brown_conrady", "inverse_brown_conrady" (intrinsics.json's `model`, a scene's
+/// `camera.distortion`); parse throws std::invalid_argument naming the value and choices.
+[[nodiscard]] std::string_view to_string(Distortion model);
+[[nodiscard]] Distortion parse_distortion(std::string_view name);
 
 /// Pixel coordinates: u right, v down, pixel centres at integers. Camera frame: x right,
 /// y down, z forward [m].
