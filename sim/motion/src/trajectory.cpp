@@ -7,23 +7,30 @@
 
 namespace linksight::sim {
 
+void Sweep::validate() const {
+  fields::check(*this, "sweep");
+  if (!(axis_B.norm() >= 1e-9)) throw fields::FieldError("axis", "[...]", "must not be zero", "sweep");
+}
+
 BaseTrajectory::BaseTrajectory(std::vector<Waypoint> waypoints, std::vector<Sweep> sweeps)
     : waypoints_(std::move(waypoints)), sweeps_(std::move(sweeps)) {
+  const auto item = [](const char* what, std::size_t i, auto&& validate) {
+    try {
+      validate();
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("BaseTrajectory: " + std::string(what) + " " +
+                                  std::to_string(i) + ": " + e.what());
+    }
+  };
   for (std::size_t i = 0; i < waypoints_.size(); ++i) {
-    if (!std::isfinite(waypoints_[i].t) || (i > 0 && !(waypoints_[i].t > waypoints_[i - 1].t))) {
+    item("waypoint", i, [&] { waypoints_[i].validate(); });
+    if (i > 0 && !(waypoints_[i].t > waypoints_[i - 1].t)) {
       throw std::invalid_argument("BaseTrajectory: waypoint " + std::to_string(i) + " time " +
-                                  std::to_string(waypoints_[i].t) +
+                                  format_shortest(waypoints_[i].t) +
                                   " s must be finite and increasing");
     }
   }
-  for (std::size_t i = 0; i < sweeps_.size(); ++i) {
-    const Sweep& s = sweeps_[i];
-    if (!(s.frequency >= 0 && std::isfinite(s.frequency)) || !std::isfinite(s.amplitude) ||
-        !s.offset_W.allFinite() || s.axis_B.norm() < 1e-9) {
-      throw std::invalid_argument("BaseTrajectory: sweep " + std::to_string(i) +
-                                  " needs a non-zero axis, finite amplitude and frequency >= 0");
-    }
-  }
+  for (std::size_t i = 0; i < sweeps_.size(); ++i) item("sweep", i, [&] { sweeps_[i].validate(); });
 }
 
 Eigen::Isometry3d BaseTrajectory::pose(double t) const {

@@ -21,8 +21,8 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 using yaml::Reader;
 
-// Composite items (poses, paths, shapes, actions) are read here, not through a parameter
-// struct's field list; their number rules are the ones below.
+// What is not a struct's field: a pose (position_m, rpy_deg), the table (a box made from
+// its top face), noise.scale, duration_s; their rules are the ones given here.
 double number(const Reader& r, const YAML::Node& map, const std::string& where, const char* key,
               double fallback, double lo, double hi) {
   const YAML::Node n = map[key];
@@ -33,24 +33,11 @@ double number(const Reader& r, const YAML::Node& map, const std::string& where, 
     r.fail(n, name, "= " + format_shortest(v) + ": " + fields::describe(fields::in(lo, hi)));
   return v;
 }
-bool boolean(const Reader& r, const YAML::Node& map, const std::string& where, const char* key,
-             bool fallback) {
-  const YAML::Node n = map[key];
-  return n ? r.boolean(n, yaml::join(where, key)) : fallback;
-}
 Eigen::Vector3d vec3(const Reader& r, const YAML::Node& map, const std::string& where,
                      const char* key, const Eigen::Vector3d& fallback) {
   const YAML::Node n = map[key];
   return n ? r.vec3(n, yaml::join(where, key)) : fallback;
 }
-template <class E, class Parse>
-E choice(const Reader& r, const YAML::Node& map, const std::string& where, const char* key,
-         E fallback, Parse parse) {
-  E v = fallback;
-  yaml::In(r, map, where)(key, v, parse);
-  return v;
-}
-
 // A pose: position_m [x, y, z] and rpy_deg [roll, pitch, yaw] (fixed axes x, y, z).
 Eigen::Isometry3d pose(const Reader& r, const YAML::Node& map, const std::string& where) {
   Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
@@ -63,33 +50,42 @@ Eigen::Isometry3d pose(const Reader& r, const YAML::Node& map, const std::string
   return X;
 }
 
+// Reads one item of a list into `x` (its field list plus `extra` keys, read by the
+// caller in `more`), then validates it at its path.
+template <class T, class More, class Validate>
+T item(const Reader& r, const YAML::Node& n, const std::string& at,
+       const std::set<std::string>& extra, More&& more, Validate&& validate) {
+  T x;
+  yaml::read(r, n, at, x, extra);
+  more(x);
+  yaml::validated(r, n, at, [&] { validate(x); });
+  return x;
+}
+
+// The items of list `key` in `map` (absent: none), each read by `read(node, path)`.
+template <class F>
+void each(const Reader& r, const YAML::Node& map, const std::string& where, const char* key,
+          F&& read) {
+  const YAML::Node list = map[key];
+  if (!list) return;
+  const std::string name = yaml::join(where, key);
+  if (!list.IsSequence()) r.fail(list, name, "expected a list");
+  for (std::size_t i = 0; i < list.size(); ++i)
+    read(list[i], name + "[" + std::to_string(i) + "]");
+}
+
 BaseTrajectory trajectory(const Reader& r, const YAML::Node& map, const std::string& where) {
   r.only(map, where, {"waypoints", "sweeps"});
   std::vector<Waypoint> wps;
-  if (const YAML::Node w = map["waypoints"]) {
-    if (!w.IsSequence()) r.fail(w, where + ".waypoints", "expected a list");
-    for (std::size_t i = 0; i < w.size(); ++i) {
-      const std::string at = where + ".waypoints[" + std::to_string(i) + "]";
-      r.only(w[i], at, {"t_s", "position_m", "rpy_deg"});
-      wps.push_back({number(r, w[i], at, "t_s", 0.0, 0.0, 1e6), pose(r, w[i], at)});
-    }
-  }
+  each(r, map, where, "waypoints", [&](const YAML::Node& n, const std::string& at) {
+    wps.push_back(item<Waypoint>(
+        r, n, at, {"position_m", "rpy_deg"}, [&](Waypoint& w) { w.X_WB = pose(r, n, at); },
+        [](const Waypoint& w) { w.validate(); }));
+  });
   std::vector<Sweep> sweeps;
-  if (const YAML::Node s = map["sweeps"]) {
-    if (!s.IsSequence()) r.fail(s, where + ".sweeps", "expected a list");
-    for (std::size_t i = 0; i < s.size(); ++i) {
-      const std::string at = where + ".sweeps[" + std::to_string(i) + "]";
-      r.only(s[i], at, {"axis", "amplitude_deg", "offset_m", "frequency_hz", "phase_deg"});
-      Sweep sw;
-      sw.axis_B = vec3(r, s[i], at, "axis", sw.axis_B);
-      if (sw.axis_B.norm() < 1e-9) r.fail(s[i]["axis"], at + ".axis", "must not be zero");
-      sw.amplitude = number(r, s[i], at, "amplitude_deg", 0.0, -180, 180) * kDeg;
-      sw.offset_W = vec3(r, s[i], at, "offset_m", sw.offset_W);
-      sw.frequency = number(r, s[i], at, "frequency_hz", sw.frequency, 0.0, 100.0);
-      sw.phase = number(r, s[i], at, "phase_deg", 0.0, -360, 360) * kDeg;
-      sweeps.push_back(sw);
-    }
-  }
+  each(r, map, where, "sweeps", [&](const YAML::Node& n, const std::string& at) {
+    sweeps.push_back(item<Sweep>(r, n, at, {}, [](Sweep&) {}, [](const Sweep& s) { s.validate(); }));
+  });
   try {
     return BaseTrajectory(std::move(wps), std::move(sweeps));
   } catch (const std::invalid_argument& e) {
@@ -97,17 +93,9 @@ BaseTrajectory trajectory(const Reader& r, const YAML::Node& map, const std::str
   }
 }
 
-// shape: box | cylinder | sphere | mesh, with its sizes. `base` resolves mesh paths.
-Shape shape(const Reader& r, const YAML::Node& map, const std::string& where,
-            const std::filesystem::path& base) {
-  Shape sh;
-  sh.kind = choice(r, map, where, "shape", Shape::Kind::box, parse_shape_kind);
-  sh.half_extents = vec3(r, map, where, "half_extents_m", sh.half_extents);
-  if (!(sh.half_extents.minCoeff() > 0))
-    r.fail(map["half_extents_m"], where + ".half_extents_m", "must all be > 0");
-  sh.radius = number(r, map, where, "radius_m", sh.radius, 1e-4, 10.0);
-  sh.half_length = number(r, map, where, "half_length_m", sh.half_length, 1e-4, 10.0);
-  sh.scale = number(r, map, where, "scale", sh.scale, 1e-6, 1e6);
+// A shaped item's mesh file, relative to the scene's folder `base`.
+void read_mesh(const Reader& r, const YAML::Node& map, const std::string& where,
+               const std::filesystem::path& base, Shape& sh) {
   if (sh.kind == Shape::Kind::mesh) {
     if (!map["mesh"]) r.fail(map, where + ".mesh", "a mesh shape needs a mesh file");
     const std::filesystem::path file = r.text(map["mesh"], where + ".mesh");
@@ -118,15 +106,6 @@ Shape shape(const Reader& r, const YAML::Node& map, const std::string& where,
   } else if (map["mesh"]) {
     r.fail(map["mesh"], where + ".mesh", "only for shape: mesh");
   }
-  return sh;
-}
-
-const std::set<std::string> kShapeKeys = {"shape",  "half_extents_m", "radius_m", "half_length_m",
-                                          "mesh",   "scale",          "reflectance"};
-
-std::set<std::string> with(std::set<std::string> keys, std::initializer_list<const char*> more) {
-  for (const char* k : more) keys.insert(k);
-  return keys;
 }
 
 void read_camera(const Reader& r, const YAML::Node& c, CameraParams& cam) {
@@ -215,96 +194,62 @@ void read_background(const Reader& r, const YAML::Node& b, const std::filesystem
     o.reflectance = number(r, wl, "background.wall", "reflectance", 1.0, 0, 10);
     out.push_back(o);
   }
-  if (const YAML::Node objs = b["objects"]) {
-    if (!objs.IsSequence()) r.fail(objs, "background.objects", "expected a list");
-    for (std::size_t i = 0; i < objs.size(); ++i) {
-      const std::string at = "background.objects[" + std::to_string(i) + "]";
-      r.only(objs[i], at, with(kShapeKeys, {"position_m", "rpy_deg"}));
-      BackgroundObject o;
-      o.shape = shape(r, objs[i], at, base);
-      o.X_WO = pose(r, objs[i], at);
-      o.reflectance = number(r, objs[i], at, "reflectance", 1.0, 0, 10);
-      out.push_back(o);
-    }
-  }
+  each(r, b, "background", "objects", [&](const YAML::Node& n, const std::string& at) {
+    out.push_back(item<BackgroundObject>(
+        r, n, at, {"mesh", "position_m", "rpy_deg"},
+        [&](BackgroundObject& o) {
+          read_mesh(r, n, at, base, o.shape);
+          o.X_WO = pose(r, n, at);
+        },
+        [](const BackgroundObject& o) { o.shape.validate(); }));
+  });
 }
 
-void read_occluders(const Reader& r, const YAML::Node& o, const std::filesystem::path& base,
+void read_occluders(const Reader& r, const YAML::Node& root, const std::filesystem::path& base,
                     std::vector<Occluder>& out) {
-  if (!o.IsSequence()) r.fail(o, "occluders", "expected a list");
-  if (o.size() > static_cast<std::size_t>(kMaxOccluders))
-    r.fail(o, "occluders", "at most " + std::to_string(kMaxOccluders));
-  for (std::size_t i = 0; i < o.size(); ++i) {
-    const std::string at = "occluders[" + std::to_string(i) + "]";
-    r.only(o[i], at, with(kShapeKeys, {"path", "from_s", "to_s"}));
-    Occluder oc;
-    oc.shape = shape(r, o[i], at, base);
-    oc.reflectance = number(r, o[i], at, "reflectance", 1.0, 0, 10);
-    if (const YAML::Node route = o[i]["path"]) oc.path = trajectory(r, route, at + ".path");
-    oc.from_s = number(r, o[i], at, "from_s", 0.0, 0.0, 1e6);
-    if (o[i]["to_s"]) {
-      oc.to_s = number(r, o[i], at, "to_s", 0.0, 0.0, 1e6);
-      if (!(oc.to_s > oc.from_s))
-        r.fail(o[i]["to_s"], at + ".to_s",
-               "= " + format_shortest(oc.to_s) + ": must be > from_s (" +
-                   format_shortest(oc.from_s) + ")");
-    }
-    if (!o[i]["from_s"]) oc.from_s = -std::numeric_limits<double>::infinity();
-    out.push_back(oc);
-  }
+  if (root["occluders"] && root["occluders"].size() > static_cast<std::size_t>(kMaxOccluders))
+    r.fail(root["occluders"], "occluders", "at most " + std::to_string(kMaxOccluders));
+  each(r, root, "", "occluders", [&](const YAML::Node& n, const std::string& at) {
+    out.push_back(item<Occluder>(
+        r, n, at, {"mesh", "path", "from_s", "to_s"},
+        [&](Occluder& oc) {
+          read_mesh(r, n, at, base, oc.shape);
+          if (const YAML::Node route = n["path"]) oc.path = trajectory(r, route, at + ".path");
+          // Absent, a bound is open: there from the start, or to the end.
+          if (n["from_s"]) oc.from_s = r.number(n["from_s"], at + ".from_s");
+          if (n["to_s"]) oc.to_s = r.number(n["to_s"], at + ".to_s");
+        },
+        [](const Occluder& oc) { oc.validate(); }));
+  });
 }
 
 void read_actions(const Reader& r, const YAML::Node& a, Scene& s) {
   r.only(a, "actions", {"forces", "gravity", "pushers", "obstacles"});
-  auto list = [&](const char* key) {
-    const YAML::Node l = a[key];
-    if (l && !l.IsSequence()) r.fail(l, std::string("actions.") + key, "expected a list");
-    return l;
-  };
-  if (const YAML::Node gv = list("gravity")) {
-    for (std::size_t i = 0; i < gv.size(); ++i) {
-      const std::string at = "actions.gravity[" + std::to_string(i) + "]";
-      r.only(gv[i], at, {"t_s", "on"});
-      s.gravity_switches.push_back(
-          {number(r, gv[i], at, "t_s", 0.0, 0.0, 1e6), boolean(r, gv[i], at, "on", true)});
-    }
-  }
-  if (const YAML::Node f = list("forces")) {
-    for (std::size_t i = 0; i < f.size(); ++i) {
-      const std::string at = "actions.forces[" + std::to_string(i) + "]";
-      r.only(f[i], at, {"component", "force_n", "torque_nm", "t_start_s", "t_end_s"});
-      ForceAction fa;
-      fa.component =
-          static_cast<int>(number(r, f[i], at, "component", 0, 0, s.chain.geometry.count - 1));
-      fa.force_W = vec3(r, f[i], at, "force_n", fa.force_W);
-      fa.torque_W = vec3(r, f[i], at, "torque_nm", fa.torque_W);
-      fa.t_start = number(r, f[i], at, "t_start_s", 0.0, 0.0, 1e6);
-      fa.t_end = number(r, f[i], at, "t_end_s", fa.t_start, fa.t_start, 1e6);
-      s.forces.push_back(fa);
-    }
-  }
-  if (const YAML::Node p = list("pushers")) {
-    for (std::size_t i = 0; i < p.size(); ++i) {
-      const std::string at = "actions.pushers[" + std::to_string(i) + "]";
-      PusherParams pp;
-      yaml::read(r, p[i], at, pp, {"path"});
-      if (const YAML::Node route = p[i]["path"]) pp.path = trajectory(r, route, at + ".path");
-      yaml::validated(r, p[i], at, [&] { pp.validate(); });
-      s.pushers.push_back(pp);
-    }
-  }
-  if (const YAML::Node o = list("obstacles")) {
-    for (std::size_t i = 0; i < o.size(); ++i) {
-      const std::string at = "actions.obstacles[" + std::to_string(i) + "]";
-      r.only(o[i], at, {"half_extents_m", "position_m", "rpy_deg"});
-      ObstacleParams op;
-      op.half_extents = vec3(r, o[i], at, "half_extents_m", op.half_extents);
-      if (!(op.half_extents.minCoeff() > 0))
-        r.fail(o[i]["half_extents_m"], at + ".half_extents_m", "must all be > 0");
-      op.X_WO = pose(r, o[i], at);
-      s.obstacles.push_back(op);
-    }
-  }
+  each(r, a, "actions", "gravity", [&](const YAML::Node& n, const std::string& at) {
+    s.gravity_switches.push_back(item<GravityAction>(
+        r, n, at, {}, [](GravityAction&) {}, [](const GravityAction& g) { g.validate(); }));
+  });
+  each(r, a, "actions", "forces", [&](const YAML::Node& n, const std::string& at) {
+    s.forces.push_back(item<ForceAction>(
+        r, n, at, {},
+        [&](ForceAction& f) {
+          if (!n["t_end_s"]) f.t_end = f.t_start;  // absent: a force of one instant
+        },
+        [&](const ForceAction& f) { f.validate(s.chain.geometry.count); }));
+  });
+  each(r, a, "actions", "pushers", [&](const YAML::Node& n, const std::string& at) {
+    s.pushers.push_back(item<PusherParams>(
+        r, n, at, {"path"},
+        [&](PusherParams& p) {
+          if (const YAML::Node route = n["path"]) p.path = trajectory(r, route, at + ".path");
+        },
+        [](const PusherParams& p) { p.validate(); }));
+  });
+  each(r, a, "actions", "obstacles", [&](const YAML::Node& n, const std::string& at) {
+    s.obstacles.push_back(item<ObstacleParams>(
+        r, n, at, {"position_m", "rpy_deg"}, [&](ObstacleParams& o) { o.X_WO = pose(r, n, at); },
+        [](const ObstacleParams& o) { o.validate(); }));
+  });
 }
 
 void read_occlusion(const Reader& r, const YAML::Node& o, Scene& s) {
@@ -343,7 +288,7 @@ std::pair<Scene, YAML::Node> load(const std::filesystem::path& path,
   if (const YAML::Node n = root["noise"]) read_noise(r, n, s.noise);
   if (const YAML::Node n = root["segmentation"]) read_segmentation(r, n, s.segmentation);
   if (const YAML::Node b = root["background"]) read_background(r, b, base, s.background);
-  if (const YAML::Node o = root["occluders"]) read_occluders(r, o, base, s.occluders);
+  read_occluders(r, root, base, s.occluders);
   const YAML::Node chain = root["chain"] ? root["chain"] : root;
   if (root["chain"]) yaml::read(r, chain, "chain", s.chain);
   yaml::validated(r, chain, "chain", [&] { s.chain.validate(); });

@@ -51,27 +51,23 @@ Shape::Kind parse_shape_kind(std::string_view name) {
 }
 
 void Shape::validate() const {
-  switch (kind) {
-    case Kind::box:
-      if (!(half_extents.minCoeff() > 0) || !half_extents.allFinite())
-        throw std::invalid_argument("shape half_extents must all be > 0");
-      break;
-    case Kind::cylinder:
-      if (!(half_length > 0) || !std::isfinite(half_length))
-        throw std::invalid_argument("shape half_length = " + std::to_string(half_length) +
-                                    ": must be > 0");
-      [[fallthrough]];
-    case Kind::sphere:
-      if (!(radius > 0) || !std::isfinite(radius))
-        throw std::invalid_argument("shape radius = " + std::to_string(radius) + ": must be > 0");
-      break;
-    case Kind::mesh:
-      if (mesh.empty() && (!mesh_data || mesh_data->triangles.empty()))
-        throw std::invalid_argument("shape mesh: no file given");
-      if (!(scale > 0) || !std::isfinite(scale))
-        throw std::invalid_argument("shape scale = " + std::to_string(scale) + ": must be > 0");
-      break;
-  }
+  fields::check(*this, "shape");
+  if (!(half_extents.minCoeff() > 0))
+    fields::fail("shape", "half_extents_m", half_extents.minCoeff(), "must all be > 0");
+  if (kind == Kind::mesh && mesh.empty() && (!mesh_data || mesh_data->triangles.empty()))
+    throw fields::FieldError("mesh", "(none)", "a mesh shape needs a mesh file", "shape");
+}
+
+void Occluder::validate() const {
+  shape.validate();
+  fields::check(*this, "occluder");
+  const fields::Rule time = fields::in(0, 1e6);
+  if (from_s != -std::numeric_limits<double>::infinity() && !fields::obeys(time, from_s))
+    fields::fail("occluder", "from_s", from_s, fields::describe(time));
+  if (to_s != std::numeric_limits<double>::infinity() && !fields::obeys(time, to_s))
+    fields::fail("occluder", "to_s", to_s, fields::describe(time));
+  if (!(to_s > from_s))
+    fields::fail("occluder", "to_s", to_s, "must be > from_s (" + format_shortest(from_s) + ")");
 }
 
 TriangleMesh Shape::triangles() const {

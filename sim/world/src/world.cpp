@@ -18,11 +18,6 @@
 namespace linksight::sim {
 namespace {
 
-[[noreturn]] void bad(const char* type, const char* field, double value, const char* rule) {
-  throw std::invalid_argument(std::string(type) + "." + field + " = " + std::to_string(value) +
-                              ": " + rule);
-}
-
 // Debian builds Bullet with float btScalar.
 btVector3 bt(const Eigen::Vector3d& v) {
   return {static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z())};
@@ -222,9 +217,18 @@ void World::set_base_pose(const Eigen::Isometry3d& X_WB) {
 void PusherParams::validate() const { fields::check(*this, "pusher"); }
 
 void ObstacleParams::validate() const {
-  if (!(half_extents.minCoeff() > 0 && half_extents.allFinite())) {
-    bad("ObstacleParams", "half_extents", half_extents.minCoeff(), "must all be > 0");
-  }
+  fields::check(*this, "obstacle");
+  if (!(half_extents.minCoeff() > 0))
+    fields::fail("obstacle", "half_extents_m", half_extents.minCoeff(), "must all be > 0");
+}
+
+void ForceAction::validate(int component_count) const {
+  fields::check(*this, "force");
+  if (component >= component_count)
+    fields::fail("force", "component", component,
+                 "must be < the chain's count (" + std::to_string(component_count) + ")");
+  if (!(t_end >= t_start))
+    fields::fail("force", "t_end_s", t_end, "must be >= t_start_s (" + format_shortest(t_start) + ")");
 }
 
 void World::set_base_trajectory(const BaseTrajectory& trajectory) {
@@ -295,18 +299,7 @@ void World::add_gravity_switch(const GravityAction& action) {
 }
 
 void World::add_force(const ForceAction& action) {
-  if (action.component < 0 || action.component >= impl_->chain.geometry.count) {
-    throw std::invalid_argument("ForceAction.component = " + std::to_string(action.component) +
-                                ": must be in [0, " +
-                                std::to_string(impl_->chain.geometry.count - 1) + "]");
-  }
-  if (!action.force_W.allFinite() || !action.torque_W.allFinite()) {
-    throw std::invalid_argument("ForceAction.force_W/torque_W: must be finite");
-  }
-  if (!(action.t_end >= action.t_start)) {
-    throw std::invalid_argument("ForceAction.t_end = " + std::to_string(action.t_end) +
-                                ": must be >= t_start");
-  }
+  action.validate(impl_->chain.geometry.count);
   impl_->actions.push_back(action);
 }
 

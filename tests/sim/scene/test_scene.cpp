@@ -140,7 +140,22 @@ TEST_F(BadScene, SensorKeysNameLineAndKey) {
       ":3: occluders[0].mesh: " + (dir / "nowhere/hand.obj").string() + ": mesh file not found");
   has("occluders:\n  - shape: box\n    mesh: a.obj\n", "occluders[0].mesh: only for shape: mesh");
   has("background:\n  objects:\n    - {shape: box, half_extents_m: [0.1, 0, 0.1]}\n",
-      "background.objects[0].half_extents_m: must all be > 0");
+      ":3: background.objects[0].half_extents_m = 0: must all be > 0");
+  // List items are read through their structs' field lists too: their rules are the
+  // structs' validate(), at the item's path and line.
+  has("occluders:\n  - {from_s: -1}\n", ":2: occluders[0].from_s = -1: must be in [0, 1000000]");
+  has("occluders:\n  - {reflectance: 11}\n", ":2: occluders[0].reflectance = 11: must be in [0, 10]");
+  has("actions:\n  forces:\n    - {component: 11}\n",
+      ":3: actions.forces[0].component = 11: must be < the chain's count (11)");
+  has("actions:\n  forces:\n    - {t_start_s: 2, t_end_s: 1}\n",
+      ":3: actions.forces[0].t_end_s = 1: must be >= t_start_s (2)");
+  has("actions:\n  gravity:\n    - {t_s: 1, on: sometimes}\n",
+      ":3: actions.gravity[0].on: expected true or false");
+  has("base:\n  sweeps:\n    - {axis: [0, 0, 0]}\n", ":3: base.sweeps[0].axis = [...]: must not be zero");
+  has("base:\n  sweeps:\n    - {amplitude_deg: 200}\n",
+      ":3: base.sweeps[0].amplitude_deg = 200: must be in [-180, 180]");
+  has("actions:\n  obstacles:\n    - {half_extents_m: [1, 1, -1]}\n",
+      ":3: actions.obstacles[0].half_extents_m = -1: must all be > 0");
   has("segmentation:\n  mode: colour\n", "segmentation.mode: unknown segmentation mode 'colour' (expected truth or depth)");
   has("segmentation:\n  crop_min_m: [0, 0, 0]\n", "give crop_min_m and crop_max_m together");
 }

@@ -16,6 +16,7 @@
 #include "linksight/sim/noise.hpp"
 #include "linksight/sim/sensor_noise.hpp"
 #include "linksight/sim/trajectory.hpp"
+#include "linksight/tracker/fields.hpp"
 #include "linksight/tracker/geometry.hpp"
 
 namespace linksight::sim {
@@ -26,9 +27,15 @@ inline constexpr std::uint8_t kLabelBackground = 200;  ///< table, wall, clutter
 inline constexpr std::uint8_t kLabelNothing = 255;     ///< the ray hit nothing
 inline constexpr int kMaxOccluders = 99;
 
+enum class ShapeKind { box, cylinder, sphere, mesh };
+/// "box", "cylinder", "sphere", "mesh"; parse throws std::invalid_argument naming the
+/// value and the choices.
+[[nodiscard]] std::string_view to_string(ShapeKind kind);
+[[nodiscard]] ShapeKind parse_shape_kind(std::string_view name);
+
 /// A rigid shape in its own frame O (centred at the origin).
 struct Shape {
-  enum class Kind { box, cylinder, sphere, mesh };
+  using Kind = ShapeKind;
   Kind kind = Kind::box;
   Eigen::Vector3d half_extents = Eigen::Vector3d(0.05, 0.05, 0.05);  ///< box [m]
   double radius = 0.05;                  ///< cylinder (around z) and sphere [m]
@@ -37,23 +44,40 @@ struct Shape {
   /// mesh: triangles given in memory instead of a file (when `mesh` is empty) [m]
   std::shared_ptr<const TriangleMesh> mesh_data;
   double scale = 1.0;                    ///< mesh: file units to metres
-  void validate() const;                 ///< throws std::invalid_argument naming the field
+  /// The keys of a shaped item (occluders, background objects; fields.hpp); `mesh` is
+  /// read as a path relative to the scene file, not a field.
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("shape", kind, parse_shape_kind);
+    ar("half_extents_m", half_extents);  // all > 0
+    ar("radius_m", radius, fields::in(1e-4, 10));
+    ar("half_length_m", half_length, fields::in(1e-4, 10));
+    ar("scale", scale, fields::in(1e-6, 1e6));
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
   /// The triangles; throws linksight::io::InputError naming a missing or bad mesh file.
   [[nodiscard]] TriangleMesh triangles() const;
 };
-/// "box", "cylinder", "sphere", "mesh"; parse throws std::invalid_argument naming the
-/// value and the choices.
-[[nodiscard]] std::string_view to_string(Shape::Kind kind);
-[[nodiscard]] Shape::Kind parse_shape_kind(std::string_view name);
+
 
 /// Something between the camera and the link, moving along a scripted pose path.
 struct Occluder {
   Shape shape;
   BaseTrajectory path;       ///< pose X_WO over time
   double reflectance = 1.0;  ///< for the low-signal dropout proxy
+  /// The keys of an `occluders` item (fields.hpp): the shape's and these; `path`,
+  /// `from_s` and `to_s` (either may be absent: always there) are read, not fields.
+  template <class Archive>
+  void fields(Archive& ar) {
+    shape.fields(ar);
+    ar("reflectance", reflectance, fields::in(0, 10));
+  }
   /// In the scene only while from_s <= t < to_s [s]; outside it neither hides nor shadows.
   double from_s = -std::numeric_limits<double>::infinity();
   double to_s = std::numeric_limits<double>::infinity();
+  /// Throws fields::FieldError naming the key: the shape's, reflectance, from_s and to_s
+  /// in [0, 1e6] s (or open: -inf, +inf), to_s > from_s.
+  void validate() const;
   /// Times within 1 us count as equal: a frame's time comes from the physics clock
   /// (steps x dt), which need not equal f / fps to the last bit.
   [[nodiscard]] bool present(double t) const {
@@ -67,6 +91,13 @@ struct BackgroundObject {
   Shape shape;
   Eigen::Isometry3d X_WO = Eigen::Isometry3d::Identity();
   double reflectance = 1.0;
+  /// The keys of a `background.objects` item (fields.hpp): the shape's and reflectance;
+  /// the pose is read from position_m and rpy_deg.
+  template <class Archive>
+  void fields(Archive& ar) {
+    shape.fields(ar);
+    ar("reflectance", reflectance, fields::in(0, 10));
+  }
 };
 
 struct SensorParams {

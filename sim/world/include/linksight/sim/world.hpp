@@ -63,12 +63,30 @@ struct ForceAction {
   Eigen::Vector3d force_W = Eigen::Vector3d::Zero();   ///< [N]
   Eigen::Vector3d torque_W = Eigen::Vector3d::Zero();  ///< [N m]
   double t_start = 0.0, t_end = 0.0;                   ///< [s], active on [t_start, t_end)
+  /// The keys of an `actions.forces` item (fields.hpp).
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("component", component, fields::in(0, 99));  // and < the chain's count
+    ar("force_n", force_W);
+    ar("torque_nm", torque_W);
+    ar("t_start_s", t_start, fields::in(0, 1e6));
+    ar("t_end_s", t_end, fields::in(0, 1e6));  // and >= t_start_s
+  }
+  /// Throws fields::FieldError naming the key; `component_count`: the chain's.
+  void validate(int component_count) const;
 };
 
 /// Gravity switched on or off at a time.
 struct GravityAction {
   double t = 0.0;  ///< [s]
   bool on = true;
+  /// The keys of an `actions.gravity` item (fields.hpp).
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("t_s", t, fields::in(0, 1e6));
+    ar("on", on);
+  }
+  void validate() const { fields::check(*this, "gravity"); }
 };
 
 /// A kinematic pusher: a sphere (length 0) or a capsule along its local z, moved along a
@@ -90,7 +108,13 @@ struct PusherParams {
 struct ObstacleParams {
   Eigen::Vector3d half_extents = Eigen::Vector3d(0.05, 0.05, 0.05);  ///< [m]
   Eigen::Isometry3d X_WO = Eigen::Isometry3d::Identity();
-  void validate() const;
+  /// The key of an `actions.obstacles` item (fields.hpp); the pose is read from
+  /// position_m and rpy_deg.
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("half_extents_m", half_extents);  // all > 0
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
 };
 
 /// The truth of one instant.
