@@ -39,6 +39,7 @@ std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int 
   std::ostringstream y;
   y << "# linksight calibrate-noise: fitted to " << frames << " frames of " << source << "\n";
   for (const std::string& note : fit.notes) y << "# note: " << note << "\n";
+  n.validate();  // a fit outside the model's ranges would write a block no scene loads
   y << sim::noise_yaml(n);  // every term in full: it reads back to the same NoiseParams
   return y.str();
 }

@@ -177,7 +177,11 @@ TEST_F(Cli, TracksASynthSequenceAndWritesTheDocumentedColumns) {
 
 // --print-scene: the resolved scene on stdout, loadable as it is, and nothing run.
 TEST_F(Cli, RunPrintSceneWritesTheResolvedScene) {
-  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/occluder_pass.yaml";
+  // A scene path relative to the working directory (the CLI runs in this process's), its
+  // meshes relative to it; the printout is loaded from another folder.
+  const std::string scene =
+      fs::relative(fs::path(LINKSIGHT_SCENE_DIR) / "occluder_pass.yaml", fs::current_path()).string();
+  ASSERT_TRUE(fs::path(scene).is_relative()) << scene;
   const CliRun r = run("run " + scene + " --set noise.scale=2 --set tracker.mode=accelerated-som "
                        "--print-scene --out " + out.string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
@@ -186,8 +190,10 @@ TEST_F(Cli, RunPrintSceneWritesTheResolvedScene) {
             std::string::npos)
       << r.out;  // the preset's 0.054 mm, scaled: every field in full
   EXPECT_NE(r.out.find("\n  mode: accelerated-som\n"), std::string::npos) << r.out;
-  std::ofstream(dir / "resolved.yaml") << r.out;
-  const CliRun again = run("run " + (dir / "resolved.yaml").string() + " --print-scene", dir);
+  fs::create_directories(dir / "elsewhere");
+  std::ofstream(dir / "elsewhere" / "resolved.yaml") << r.out;
+  const CliRun again =
+      run("run " + (dir / "elsewhere" / "resolved.yaml").string() + " --print-scene", dir);
   ASSERT_EQ(again.code, 0) << again.err;
   EXPECT_EQ(again.out.substr(again.out.find('\n')), r.out.substr(r.out.find('\n')));
 }

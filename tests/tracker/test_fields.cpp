@@ -124,8 +124,16 @@ TEST(Format, ShortestReadsBackToTheSameBits) {
   const double k = std::numbers::pi / 180;
   EXPECT_EQ(format_shortest(80 * k, k), "80");
   EXPECT_EQ(format_shortest(89.9 * k, k), "89.9");
-  const double odd = 0.123456789;  // radians with no short decimal in degrees
-  EXPECT_EQ(std::strtod(format_shortest(odd, k).c_str(), nullptr) * k, odd);
+  // A value no decimal maps to exactly (as a reader maps it: d * pi/180) reads back
+  // within one ulp; found by search so that the fallback is really taken.
+  int unreachable = 0;
+  for (double v = 0.001; v < 1.5 && unreachable < 5; v = std::nextafter(v * 1.37, 2.0)) {
+    const double back = std::strtod(format_shortest(v, k).c_str(), nullptr) * k;
+    if (back == v) continue;
+    ++unreachable;
+    EXPECT_LE(std::abs(back - v), std::nextafter(v, 2.0) - v) << v;
+  }
+  EXPECT_GT(unreachable, 0) << "no value took the fallback: the search proves nothing";
 }
 
 TEST(Format, FixedMatchesTheStreamsItReplaced) {

@@ -43,8 +43,8 @@ FieldError FieldError::rooted(const std::string& root) const {
 }
 
 void fail(const std::string& root, const std::string& key, double value,
-          const std::string& rule, double scale) {
-  throw FieldError(key, format_shortest(value, scale), rule, root);
+          const std::string& rule) {
+  throw FieldError(key, format_shortest(value), rule, root);
 }
 
 }  // namespace linksight::fields

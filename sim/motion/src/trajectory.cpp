@@ -27,7 +27,7 @@ BaseTrajectory::BaseTrajectory(std::vector<Waypoint> waypoints, std::vector<Swee
     if (i > 0 && !(waypoints_[i].t > waypoints_[i - 1].t)) {
       throw std::invalid_argument("BaseTrajectory: waypoint " + std::to_string(i) + " time " +
                                   format_shortest(waypoints_[i].t) +
-                                  " s must be finite and increasing");
+                                  " s must be later than the one before");
     }
   }
   for (std::size_t i = 0; i < sweeps_.size(); ++i) item("sweep", i, [&] { sweeps_[i].validate(); });

@@ -17,7 +17,7 @@
 namespace linksight::sim {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr double kDeg = fields::deg({}).scale;
 
 using yaml::Reader;
 
@@ -147,6 +147,7 @@ void read_noise(const Reader& r, const YAML::Node& n, NoiseParams& noise) {
   if (n["dropouts"]) noise.dropouts.enabled = true;
   if (n["edges"]) noise.edges.enabled = true;
   yaml::read(r, n, "noise", noise, {"preset", "scale"});
+  yaml::validated(r, n, "noise", [&] { noise.validate(); });  // the values the file gives
   // One knob for sweeps: scales every random term (axial sigma, ray jitter) after the
   // blocks above; dropouts, edges and shadows are left as they are.
   const double scale = number(r, n, "noise", "scale", 1.0, 0.0, 100.0);
@@ -154,7 +155,13 @@ void read_noise(const Reader& r, const YAML::Node& n, NoiseParams& noise) {
   noise.axial.c *= scale;
   noise.axial.k_theta *= scale;
   noise.lateral.sigma_px *= scale;
-  yaml::validated(r, n, "noise", [&] { noise.validate(); });
+  try {
+    noise.validate();
+  } catch (const fields::FieldError& e) {
+    r.fail(n["scale"] ? n["scale"] : n, "noise.scale",
+           "= " + format_shortest(scale) + " makes noise." + e.key() + " " + e.value() + ", which " +
+               e.rule());
+  }
 }
 
 void read_segmentation(const Reader& r, const YAML::Node& n, ExtractParams& p) {
@@ -283,7 +290,7 @@ std::pair<Scene, YAML::Node> load(const std::filesystem::path& path,
   Scene s;
   s.duration_s = number(r, root, "", "duration_s", s.duration_s, 1e-3, 3600.0);
   if (const YAML::Node n = root["seed"])
-    s.seed = static_cast<std::uint64_t>(r.integer(n, "seed", 0, 9007199254740992.0));  // 2^53
+    s.seed = static_cast<std::uint64_t>(r.integer(n, "seed", 0, 9007199254740994.0));  // [0, 2^53]
   if (const YAML::Node c = root["camera"]) read_camera(r, c, s.camera);
   if (const YAML::Node n = root["noise"]) read_noise(r, n, s.noise);
   if (const YAML::Node n = root["segmentation"]) read_segmentation(r, n, s.segmentation);
@@ -344,7 +351,8 @@ std::string resolved_scene_yaml(const std::filesystem::path& path,
   // printed scene loads from anywhere.
   const auto resolve_meshes = [](YAML::Node list, auto shape_of) {
     for (std::size_t i = 0; list.IsSequence() && i < list.size(); ++i)
-      if (list[i]["mesh"]) list[i]["mesh"] = shape_of(i).mesh.string();
+      if (list[i]["mesh"])
+        list[i]["mesh"] = std::filesystem::absolute(shape_of(i).mesh).lexically_normal().string();
   };
   for (const char* key : {"base", "occluders", "background", "actions"}) {
     if (!root[key]) continue;

@@ -61,11 +61,13 @@ void Shape::validate() const {
 void Occluder::validate() const {
   shape.validate();
   fields::check(*this, "occluder");
-  const fields::Rule time = fields::in(0, 1e6);
-  if (from_s != -std::numeric_limits<double>::infinity() && !fields::obeys(time, from_s))
-    fields::fail("occluder", "from_s", from_s, fields::describe(time));
-  if (to_s != std::numeric_limits<double>::infinity() && !fields::obeys(time, to_s))
-    fields::fail("occluder", "to_s", to_s, fields::describe(time));
+  // An absent bound is open (-inf, +inf); a given one is a time in the episode, and an
+  // end at 0 would be an occluder that never appears.
+  if (from_s != -std::numeric_limits<double>::infinity() && !fields::obeys(fields::in(0, 1e6), from_s))
+    fields::fail("occluder", "from_s", from_s, fields::describe(fields::in(0, 1e6)));
+  if (to_s != std::numeric_limits<double>::infinity() &&
+      !fields::obeys(fields::in_lo_open(0, 1e6), to_s))
+    fields::fail("occluder", "to_s", to_s, fields::describe(fields::in_lo_open(0, 1e6)));
   if (!(to_s > from_s))
     fields::fail("occluder", "to_s", to_s, "must be > from_s (" + format_shortest(from_s) + ")");
 }
@@ -120,12 +122,8 @@ Sensor::Sensor(const SensorParams& params, const ComponentGeometry& geometry,
   const TriangleMesh component = component_mesh(geometry, params.component_segments);
   std::vector<TriangleMesh> occluder_meshes, background_meshes;
   for (std::size_t k = 0; k < m.occluders.size(); ++k) {
-    const Occluder& o = m.occluders[k];
-    if (std::isnan(o.from_s) || std::isnan(o.to_s) || !(o.from_s < o.to_s))
-      throw std::invalid_argument("occluder " + std::to_string(k) + ": from_s = " +
-                                  std::to_string(o.from_s) + ", to_s = " +
-                                  std::to_string(o.to_s) + ": need from_s < to_s");
     try {
+      m.occluders[k].validate();
       occluder_meshes.push_back(m.occluders[k].shape.triangles());
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("occluder " + std::to_string(k) + ": " + e.what());

@@ -72,9 +72,13 @@ double Reader::number(const YAML::Node& n, const std::string& key) const {
   }
 }
 
-double Reader::integer(const YAML::Node& n, const std::string& key, double lo, double hi) const {
+double Reader::integer(const YAML::Node& n, const std::string& key, double lo,
+                       double hi_exclusive) const {
   const double v = number(n, key);
-  if (!(v == std::floor(v) && v >= lo && v <= hi)) fail(n, key, "expected a whole number");
+  if (!(v == std::floor(v))) fail(n, key, "expected a whole number");
+  if (!(v >= lo && v < hi_exclusive))
+    fail(n, key, "= " + format_shortest(v) + ": must be a whole number in [" + format_shortest(lo) +
+                     ", " + format_shortest(hi_exclusive) + ")");
   return v;
 }
 

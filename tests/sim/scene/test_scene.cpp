@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <limits>
+#include <set>
 
 #include "linksight/io/error.hpp"
 #include "linksight/sim/scene.hpp"
@@ -85,7 +87,7 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
                 .find("base.waypoints[0].position_m: expected [x, y, z]"),
             std::string::npos);
   EXPECT_NE(error_of("base:\n  waypoints:\n    - {t_s: 2}\n    - {t_s: 1}\n")
-                .find("must be finite and increasing"),
+                .find("base: BaseTrajectory: waypoint 1 time 1 s must be later than the one before"),
             std::string::npos);
   EXPECT_NE(error_of("duration_s: [1\n").find("malformed YAML"), std::string::npos);
   // A rule between keys names the key it is about, at that key's line when the file has
@@ -100,6 +102,21 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
       << error_of("chain:\n  ball_radius_m: 0.025\n");
   EXPECT_NE(error_of("chain:\n  count: 3.5\n").find(":2: chain.count: expected a whole number"),
             std::string::npos);
+  // A whole number beyond its type is refused before it is converted.
+  EXPECT_NE(error_of("tracker:\n  max_points: 18446744073709551616\n")
+                .find(":2: tracker.max_points = 1.8446744073709552e+19: must be a whole number in "
+                      "[0, 1.8446744073709552e+19)"),
+            std::string::npos)
+      << error_of("tracker:\n  max_points: 18446744073709551616\n");
+  EXPECT_NE(error_of("camera:\n  width: 3e9\n").find(":2: camera.width = 3000000000: must be a whole number"),
+            std::string::npos);
+  EXPECT_EQ(error_of("seed: 9007199254740992\n"), "no error");  // 2^53
+  // noise.scale scales the file's values after they are checked: a scaled value out of
+  // range names the scale.
+  EXPECT_NE(error_of("noise:\n  scale: 60\n  axial: {a_m: 0.002}\n")
+                .find(":2: noise.scale = 60 makes noise.axial.a_m 0.12, which must be in [0, 0.1]"),
+            std::string::npos)
+      << error_of("noise:\n  scale: 60\n  axial: {a_m: 0.002}\n");
   EXPECT_NE(error_of("[1, 2]: 3\n").find(":1: (top level): a key must be a plain name"),
             std::string::npos);
   EXPECT_EQ(error_of("duration_s: 1\n"), "no error");
@@ -219,6 +236,63 @@ TEST_F(BadScene, NoiseBlockReadsBackToTheSameNoise) {
   EXPECT_FALSE(m.quantize);
   EXPECT_EQ(m.dropouts.hole_p90_px, n.dropouts.hole_p90_px);
   EXPECT_EQ(noise_yaml(m), noise_yaml(n));
+}
+
+// Defaults that depend on other keys: a force without t_end_s is one instant; an
+// occluder without from_s or to_s is there from the start or to the end.
+TEST_F(BadScene, ListItemDefaultsThatDependOnOtherKeys) {
+  const auto p = dir / "scene.yaml";
+  std::ofstream(p) << "actions:\n  forces:\n    - {component: 3, t_start_s: 1.5}\n"
+                   << "occluders:\n  - {to_s: 2}\n  - {from_s: 1}\n  - {}\n";
+  const Scene s = load_scene(p);
+  ASSERT_EQ(s.forces.size(), 1u);
+  EXPECT_EQ(s.forces[0].t_start, 1.5);
+  EXPECT_EQ(s.forces[0].t_end, 1.5);
+  ASSERT_EQ(s.occluders.size(), 3u);
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(s.occluders[0].from_s, -inf);
+  EXPECT_EQ(s.occluders[0].to_s, 2.0);
+  EXPECT_EQ(s.occluders[1].from_s, 1.0);
+  EXPECT_EQ(s.occluders[1].to_s, inf);
+  EXPECT_EQ(s.occluders[2].from_s, -inf);
+  EXPECT_EQ(s.occluders[2].to_s, inf);
+  std::ofstream(p) << "occluders:\n  - {to_s: 0}\n";  // would never appear
+  EXPECT_NE(error_of("occluders:\n  - {to_s: 0}\n").find(":2: occluders[0].to_s = 0: must be in (0, 1000000]"),
+            std::string::npos);
+}
+
+// Every struct lists each key once.
+struct KeyRecorder {
+  std::vector<std::string> keys;
+  template <class T, class... R>
+  void operator()(const char* key, T&, R&&...) {
+    keys.emplace_back(key);
+  }
+};
+template <class T>
+void expect_unique_keys(T x, const char* name) {
+  KeyRecorder r;
+  x.fields(r);
+  const std::set<std::string> unique(r.keys.begin(), r.keys.end());
+  EXPECT_EQ(unique.size(), r.keys.size()) << name;
+  EXPECT_FALSE(r.keys.empty()) << name;
+}
+TEST(SceneFields, EveryStructListsEachKeyOnce) {
+  expect_unique_keys(CameraParams{}, "camera");
+  expect_unique_keys(NoiseParams{}, "noise");
+  expect_unique_keys(AxialNoise{}, "noise.axial");
+  expect_unique_keys(Dropouts{}, "noise.dropouts");
+  expect_unique_keys(EdgeEffects{}, "noise.edges");
+  expect_unique_keys(ExtractParams{}, "segmentation");
+  expect_unique_keys(ChainParams{}, "chain");
+  expect_unique_keys(WorldParams{}, "world");
+  expect_unique_keys(ScreenOcclusion{}, "occlusion");
+  expect_unique_keys(TrackerParams{}, "tracker");
+  expect_unique_keys(Occluder{}, "occluders[]");
+  expect_unique_keys(BackgroundObject{}, "background.objects[]");
+  expect_unique_keys(Sweep{}, "sweeps[]");
+  expect_unique_keys(ForceAction{}, "actions.forces[]");
+  expect_unique_keys(PusherParams{}, "actions.pushers[]");
 }
 
 TEST_F(BadScene, NoiseOverridesStartFromThePreset) {

@@ -7,7 +7,7 @@
 ///
 ///     template <class Archive> void fields(Archive& ar) {
 ///       ar("a_m", a, fields::at_least(0));          // [m], >= 0
-///       ar("theta_cap_deg", theta_cap, fields::deg(fields::in_open(0, 90)));
+///       ar("theta_cap_deg", theta_cap, fields::deg(fields::in_hi_open(0, 90)));
 ///       ar("enabled", enabled);
 ///       ar("axial", axial);                         // a struct with its own fields()
 ///       ar("mode", mode, parse_mode);               // an enum: to_string + its parser
@@ -15,7 +15,7 @@
 ///
 /// and its `validate()` calls `fields::check(*this, "noise")` before its cross-field rules.
 /// An archive is any class with those call operators: `fields::Checker` below, the YAML
-/// reader and writer (sim/scene), the JSON echo (tools). Archives that only read the
+/// reader and writer (sim/yaml), the JSON echo (tools/params_json.hpp). Archives that only read the
 /// values (check, write) visit a const object through `const_cast`; they never assign.
 
 #include <Eigen/Core>
@@ -113,7 +113,6 @@ class Checker {
       throw FieldError(key, std::to_string(v), describe(rule));
   }
   void operator()(const char*, bool&) const {}
-  void operator()(const char*, std::string&) const {}
   template <class E, Parser Parse>
   void operator()(const char*, E&, Parse) const {}
   void operator()(const char* key, Eigen::Vector3d& v) const {
@@ -148,9 +147,8 @@ void check(const T& x, const std::string& root) {
   }
 }
 
-/// A cross-field rule broken: throws FieldError for `key` (value in code units, shown
-/// divided by `scale`: pi/180 for a `*_deg` key).
+/// A cross-field rule broken: throws FieldError for `key` with its value.
 [[noreturn]] void fail(const std::string& root, const std::string& key, double value,
-                       const std::string& rule, double scale = 1.0);
+                       const std::string& rule);
 
 }  // namespace linksight::fields

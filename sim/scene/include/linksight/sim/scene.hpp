@@ -58,13 +58,15 @@ struct Scene {
 
 /// The scene as load_scene reads it, as YAML that loads to the same Scene: every
 /// parameter block (camera, noise, segmentation, chain, world, occlusion, tracker) in
-/// full from its field list, the lists (base, occluders, background, actions) as given.
+/// full from its field list, the lists (base, occluders, background, actions) as given
+/// (mesh files as absolute paths). Every value reads back bit for bit, except an angle
+/// set in code in radians that no decimal in degrees maps to exactly: within one ulp.
 /// `linksight run --print-scene`. Throws as load_scene.
 [[nodiscard]] std::string resolved_scene_yaml(const std::filesystem::path& path,
                                               const std::vector<std::string>& overrides = {});
 
 /// A scene's `noise:` block in full (calibrate-noise's output), from NoiseParams' field
-/// list; it loads back to the same NoiseParams.
+/// list; it loads back to the same NoiseParams (angles: see resolved_scene_yaml).
 [[nodiscard]] std::string noise_yaml(const NoiseParams& noise);
 
 /// Builds the world of a scene at t = 0.

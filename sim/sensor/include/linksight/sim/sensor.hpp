@@ -75,8 +75,8 @@ struct Occluder {
   /// In the scene only while from_s <= t < to_s [s]; outside it neither hides nor shadows.
   double from_s = -std::numeric_limits<double>::infinity();
   double to_s = std::numeric_limits<double>::infinity();
-  /// Throws fields::FieldError naming the key: the shape's, reflectance, from_s and to_s
-  /// in [0, 1e6] s (or open: -inf, +inf), to_s > from_s.
+  /// Throws fields::FieldError naming the key: the shape's, reflectance, from_s in
+  /// [0, 1e6] s and to_s in (0, 1e6] s (or open: -inf, +inf), to_s > from_s.
   void validate() const;
   /// Times within 1 us count as equal: a frame's time comes from the physics clock
   /// (steps x dt), which need not equal f / fps to the last bit.

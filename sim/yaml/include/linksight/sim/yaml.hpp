@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include <array>
+#include <cmath>
 #include <filesystem>
 #include <limits>
 #include <ostream>
@@ -46,7 +47,6 @@ class Reader {
  public:
   explicit Reader(std::string file, std::vector<Override> overrides = {})
       : file_(std::move(file)), overrides_(std::move(overrides)) {}
-  [[nodiscard]] const std::string& file() const { return file_; }
 
   [[noreturn]] void fail(const YAML::Node& node, const std::string& key,
                          const std::string& what) const;
@@ -57,9 +57,10 @@ class Reader {
   [[nodiscard]] std::string key_text(const YAML::Node& key, const std::string& where) const;
   /// The number at `n` (named `key` in errors).
   [[nodiscard]] double number(const YAML::Node& n, const std::string& key) const;
-  /// A number that is a whole value within [lo, hi].
+  /// A number that is a whole value in [lo, hi) (hi exclusive, so that 2^64 is a bound
+  /// a double holds exactly).
   [[nodiscard]] double integer(const YAML::Node& n, const std::string& key, double lo,
-                               double hi) const;
+                               double hi_exclusive) const;
   [[nodiscard]] std::string text(const YAML::Node& n, const std::string& key) const;
   [[nodiscard]] bool boolean(const YAML::Node& n, const std::string& key) const;
   /// `count` numbers in a list.
@@ -106,10 +107,12 @@ class In {
   template <class I>
     requires std::is_integral_v<I> && (!std::is_same_v<I, bool>)
   void operator()(const char* key, I& v, fields::Rule = {}) const {
+    // The type's range as doubles, exactly: [-2^digits, 2^digits) (digits without the sign).
     if (const YAML::Node n = map_[key])
-      v = static_cast<I>(r_.integer(n, join(where_, key),
-                                    static_cast<double>(std::numeric_limits<I>::lowest()),
-                                    static_cast<double>(std::numeric_limits<I>::max())));
+      v = static_cast<I>(r_.integer(
+          n, join(where_, key),
+          std::is_signed_v<I> ? -std::ldexp(1.0, std::numeric_limits<I>::digits) : 0.0,
+          std::ldexp(1.0, std::numeric_limits<I>::digits)));
   }
   void operator()(const char* key, bool& v) const {
     if (const YAML::Node n = map_[key]) v = r_.boolean(n, join(where_, key));
