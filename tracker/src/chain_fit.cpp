@@ -64,8 +64,12 @@ struct Hit {
 
 Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ChainState& chain,
             const ComponentGeometry& g) {
+  // Component k's surface lies within `reach` of its centre, so a point at |p - c_k| is at
+  // least |p - c_k| - reach from it: components that cannot beat the best are skipped.
+  const double reach = std::max(g.ball_radius, g.neck_length + g.neck_radius);
   Hit h;
   for (std::size_t k = 0; k < chain.axis.size(); ++k) {
+    if ((p - f.centre[k]).norm() - reach >= h.part.distance) continue;
     const Part part = component_distance(p, f.centre[k], chain.axis[k], g);
     if (part.distance < h.part.distance) {
       h.k = static_cast<int>(k);
@@ -81,17 +85,27 @@ double huber(double r, double h) {
 }
 
 // The robust cost of the chain over the points; points beyond max_distance count as if
-// there, so that a step that pushes points out does not look cheaper.
-double cost(const PointsView& pts, const ChainState& chain, const ComponentGeometry& g,
-            const ChainFitParams& params) {
+// there, so that a step that pushes points out does not look cheaper. Also the inliers'
+// count and sum of squared distances.
+struct Cost {
+  double robust = 0;
+  std::size_t inliers = 0;
+  double sum2 = 0;
+};
+Cost cost(const PointsView& pts, const ChainState& chain, const ComponentGeometry& g,
+          const ChainFitParams& params) {
   const Frames f = frames_of(chain, g.pitch);
-  double sum = 0;
+  Cost c;
   for (std::size_t i = 0; i < pts.size(); ++i) {
     const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
     const double r = nearest(p, f, chain, g).part.distance;
-    sum += huber(std::min(std::abs(r), params.max_distance), params.huber);
+    c.robust += huber(std::min(std::abs(r), params.max_distance), params.huber);
+    if (std::abs(r) <= params.max_distance) {
+      ++c.inliers;
+      c.sum2 += r * r;
+    }
   }
-  return sum;
+  return c;
 }
 
 ChainState stepped(const ChainState& chain, const Frames& f, const Eigen::VectorXd& dx) {
@@ -128,17 +142,23 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   const Eigen::Index n = 3 + 2 * count;
   ChainFitResult result;
   double lambda = 1e-4;  // damping, relative to the diagonal (Levenberg-Marquardt)
-  double current = cost(pts, chain, g, params);
+  Cost current;          // of `chain`, from the pass that linearizes at it
+  Eigen::MatrixXd H(n, n);
+  Eigen::VectorXd b(n), J(n);
   for (int it = 0; it < params.max_iterations; ++it) {
+    // One pass: the association, the normal equations and the cost at the current chain.
     const Frames f = frames_of(chain, g.pitch);
-    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-    Eigen::VectorXd J(n);
+    H.setZero();
+    b.setZero();
+    current = {};
     for (std::size_t i = 0; i < pts.size(); ++i) {
       const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
       const Hit hit = nearest(p, f, chain, g);
       const double r = hit.part.distance;
+      current.robust += huber(std::min(std::abs(r), params.max_distance), params.huber);
       if (hit.k < 0 || std::abs(r) > params.max_distance) continue;
+      ++current.inliers;
+      current.sum2 += r * r;
       // dr/dx: moving centre k by dc changes r by -n.dc; turning axis j < k by a tangent
       // moves centre k by pitch along it; turning axis k moves the neck point by s along it.
       const Eigen::Vector3d& nrm = hit.part.normal;
@@ -165,34 +185,29 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
       const Eigen::VectorXd dx = A.ldlt().solve(b);
       ChainState trial = stepped(chain, f, dx);
       limit_bends(trial, params.cone_limit);
-      const double c = cost(pts, trial, g, params);
-      if (c <= current) {
-        double moved = 0;
-        const Nodes before = chain.nodes(g.pitch), after = trial.nodes(g.pitch);
-        for (std::size_t k = 0; k < before.size(); ++k)
-          moved = std::max(moved, (after[k] - before[k]).norm());
+      double moved = 0;
+      const Nodes after = trial.nodes(g.pitch);
+      for (std::size_t k = 0; k < after.size(); ++k)
+        moved = std::max(moved, (after[k] - f.centre[k]).norm());
+      if (moved <= params.tolerance) {  // the step would move nothing: a minimum
+        converged = true;
+        break;
+      }
+      const Cost c = cost(pts, trial, g, params);
+      if (c.robust <= current.robust) {
         chain = std::move(trial);
         current = c;
         lambda = std::max(lambda / 10, 1e-9);
         accepted = true;
         result.iterations = it + 1;
-        converged = moved <= params.tolerance;
       } else {
         lambda *= 10;
       }
     }
     if (!accepted || converged) break;  // no damped step lowers the cost, or none moves
   }
-  const Frames f = frames_of(chain, g.pitch);
-  double sum2 = 0;
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
-    const double r = nearest(p, f, chain, g).part.distance;
-    if (std::abs(r) > params.max_distance) continue;
-    ++result.inliers;
-    sum2 += r * r;
-  }
-  result.rms = result.inliers ? std::sqrt(sum2 / static_cast<double>(result.inliers)) : 0.0;
+  result.inliers = current.inliers;
+  result.rms = current.inliers ? std::sqrt(current.sum2 / static_cast<double>(current.inliers)) : 0.0;
   return result;
 }
 

@@ -22,6 +22,11 @@ constexpr ModeSpec kModes[] = {
      "paper, then each output node moved 2/3 r further from the camera along its viewing "
      "ray, from the seen surface to the ball centre (not in the paper)",
      kInitLsq, kUpdateSomMean, kReinitEmptyNeighbourhood, kOutputCentreOffset},
+    {"chain-fit",
+     "the chain itself: LSQ init moved to the centres, then the ball centres fitted to the points by their distance "
+     "to the component surfaces, every pitch exact (issue 17; a first version: no "
+     "re-initialization, free-space reasoning or prediction yet)",
+     kInitLsqCentred, kUpdateChainFit, kReinitNever, kOutputCentres},
 };
 static_assert(std::size(kModes) < 256, "TrackerMode holds an 8-bit index");
 

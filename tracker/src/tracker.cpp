@@ -49,6 +49,7 @@ void PolicyParams::validate() const {
   lsq_init.validate();
   som_init.validate();
   centre_offset.validate();
+  chain_fit.validate();
 }
 
 struct Tracker::State {

@@ -309,6 +309,7 @@ std::pair<Scene, YAML::Node> load(const std::filesystem::path& path,
   s.tracker.nodes = s.chain.geometry.count + 1;
   s.tracker.policy.lsq_init.pitch = s.chain.geometry.pitch;
   s.tracker.policy.som_init.seed = derive_seed(s.seed, "tracker");
+  s.tracker.policy.chain_fit.cone_limit = s.chain.cone_limit;
   const YAML::Node tracker = root["tracker"] ? root["tracker"] : root;
   if (root["tracker"]) yaml::read(r, tracker, "tracker", s.tracker);
   yaml::validated(r, tracker, "tracker", [&] { s.tracker.validate(); });

@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "linksight/tracker/backend.hpp"
+#include "linksight/tracker/chain_fit.hpp"
 #include "linksight/tracker/init.hpp"
 #include "linksight/tracker/model.hpp"
 
@@ -96,6 +97,7 @@ struct PolicyParams {
   InitParams lsq_init;               ///< init `lsq` (Eqs. 9-10)
   SomInitParams som_init;            ///< init `som`
   CentreOffsetParams centre_offset;  ///< output `centre-offset`
+  ChainFitParams chain_fit;          ///< update `chain-fit` (cone_limit: the chain's)
   void validate() const;             ///< throws std::invalid_argument naming the field
 };
 
@@ -103,15 +105,21 @@ struct PolicyParams {
 
 std::unique_ptr<InitPolicy> make_init_lsq(const TrackerParams& params);
 std::unique_ptr<InitPolicy> make_init_som(const TrackerParams& params);
+std::unique_ptr<InitPolicy> make_init_lsq_centred(const TrackerParams& params);
 std::unique_ptr<UpdatePolicy> make_update_som_mean(const TrackerParams& params);
+std::unique_ptr<UpdatePolicy> make_update_chain_fit(const TrackerParams& params);
 std::unique_ptr<ReinitTrigger> make_reinit_empty_neighbourhood(const TrackerParams& params);
 std::unique_ptr<ReinitTrigger> make_reinit_never(const TrackerParams& params);
 std::unique_ptr<OutputPolicy> make_output_surface(const TrackerParams& params);
 std::unique_ptr<OutputPolicy> make_output_centre_offset(const TrackerParams& params);
+std::unique_ptr<OutputPolicy> make_output_centres(const TrackerParams& params);
 
 /// LSQ polynomial init (Sec. IV.A, Eqs. 9-10; settings policy.lsq_init), oriented to the
 /// previous nodes on re-initialization.
 inline constexpr PolicyRef<InitPolicy> kInitLsq{"lsq", &make_init_lsq};
+/// LSQ init, each node then moved kCentreOffset r further along its viewing ray: a start
+/// near the ball centres for a model fit (settings policy.lsq_init).
+inline constexpr PolicyRef<InitPolicy> kInitLsqCentred{"lsq-centred", &make_init_lsq_centred};
 /// The baseline's straight-line or random-sample init (settings policy.som_init).
 inline constexpr PolicyRef<InitPolicy> kInitSom{"som", &make_init_som};
 /// Each node moves to the mean of the points associated with it (Eq. 12).
@@ -119,10 +127,16 @@ inline constexpr PolicyRef<UpdatePolicy> kUpdateSomMean{"som-mean", &make_update
 /// Fires when a node's neighbourhood is empty (Sec. IV.C).
 inline constexpr PolicyRef<ReinitTrigger> kReinitEmptyNeighbourhood{
     "empty-neighbourhood", &make_reinit_empty_neighbourhood};
+/// The nodes as a chain of components one pitch apart, fitted to the points by their
+/// distance to the component surfaces (chain_fit.hpp; settings policy.chain_fit). Needs
+/// nodes = count + 1.
+inline constexpr PolicyRef<UpdatePolicy> kUpdateChainFit{"chain-fit", &make_update_chain_fit};
 /// Never fires.
 inline constexpr PolicyRef<ReinitTrigger> kReinitNever{"never", &make_reinit_never};
 /// The nodes as they are: on the seen surface.
 inline constexpr PolicyRef<OutputPolicy> kOutputSurface{"surface", &make_output_surface};
+/// The nodes as the fit has them: ball centres and the tip node.
+inline constexpr PolicyRef<OutputPolicy> kOutputCentres{"centres", &make_output_centres};
 /// Each node moved policy.centre_offset.fraction of the ball radius further from the
 /// camera along its viewing ray (settings policy.centre_offset).
 inline constexpr PolicyRef<OutputPolicy> kOutputCentreOffset{"centre-offset",
