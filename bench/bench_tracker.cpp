@@ -1,5 +1,6 @@
 // Tracker throughput: paper mode, 12 nodes, 4 iterations, ms per frame over N points,
-// for every back end. `--smoke` registers one tiny size only (ctest runs it untimed).
+// for every back end; chain-fit beside it on serial and OpenMP (tracker_step_chain_fit/),
+// for the ratio mode / paper mode measured in one run. `--smoke` registers one tiny size only (ctest runs it untimed).
 //   linksight_bench --benchmark_filter=opencl     # one back end (the engine is in the name)
 #include <benchmark/benchmark.h>
 
@@ -34,9 +35,11 @@ Cloud make_cloud(std::size_t n) {
 
 // End-to-end ms/frame (for OpenCL: upload + kernels + read-backs) and, for OpenCL, the
 // kernels' own device time per frame from profiling events ("kernel_ms").
-void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation accumulation) {
+void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation accumulation,
+                    const char* mode) {
   const Cloud cloud = make_cloud(static_cast<std::size_t>(state.range(0)));
   TrackerParams p;
+  p.mode = parse_mode(mode);
   p.backend = backend;
   p.opencl.accumulation = accumulation;
   p.nodes = 12;
@@ -86,7 +89,15 @@ int main(int argc, char** argv) {
         Engine{"opencl_reduction", BackendKind::opencl, ClAccumulation::reduction},
         Engine{"opencl_atomic", BackendKind::opencl, ClAccumulation::atomic}}) {
     auto* bm = benchmark::RegisterBenchmark((std::string("tracker_step/") + e.name).c_str(),
-                                            BM_TrackerStep, e.kind, e.accumulation);
+                                            BM_TrackerStep, e.kind, e.accumulation, "paper");
+    for (auto n : sizes) bm->Arg(n);
+    bm->Unit(benchmark::kMillisecond)->UseRealTime();
+  }
+  for (const Engine& e : {Engine{"serial", BackendKind::serial, ClAccumulation::reduction},
+                          Engine{"openmp", BackendKind::openmp, ClAccumulation::reduction}}) {
+    auto* bm = benchmark::RegisterBenchmark(
+        (std::string("tracker_step_chain_fit/") + e.name).c_str(), BM_TrackerStep, e.kind,
+        e.accumulation, "chain-fit");
     for (auto n : sizes) bm->Arg(n);
     bm->Unit(benchmark::kMillisecond)->UseRealTime();
   }

@@ -55,6 +55,11 @@ class BadScene : public ::testing::Test {
  protected:
   std::filesystem::path dir =
       test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  // The error of `yaml` names `needle` (file:line: key = value: rule ...).
+  void has(const std::string& yaml, const std::string& needle) {
+    const std::string e = error_of(yaml);
+    EXPECT_NE(e.find(needle), std::string::npos) << "got: " << e;
+  }
   std::string error_of(const std::string& yaml) {
     const auto p = dir / "scene.yaml";
     std::ofstream(p) << yaml;
@@ -92,31 +97,19 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
   EXPECT_NE(error_of("duration_s: [1\n").find("malformed YAML"), std::string::npos);
   // A rule between keys names the key it is about, at that key's line when the file has
   // it, else at the block.
-  EXPECT_NE(error_of("chain:\n  neck_radius_m: 0.02\n")
-                .find(":2: chain.neck_radius_m = 0.02: must be < ball_radius_m (0.015)"),
-            std::string::npos)
-      << error_of("chain:\n  neck_radius_m: 0.02\n");
-  EXPECT_NE(error_of("chain:\n  ball_radius_m: 0.025\n")
-                .find(":2: chain.pitch_m = 0.045: must be >= 2 * ball_radius_m (balls would overlap)"),
-            std::string::npos)
-      << error_of("chain:\n  ball_radius_m: 0.025\n");
+  has("chain:\n  neck_radius_m: 0.02\n", ":2: chain.neck_radius_m = 0.02: must be < ball_radius_m (0.015)");
+  has("chain:\n  ball_radius_m: 0.025\n", ":2: chain.pitch_m = 0.045: must be >= 2 * ball_radius_m (balls would overlap)");
   EXPECT_NE(error_of("chain:\n  count: 3.5\n").find(":2: chain.count: expected a whole number"),
             std::string::npos);
   // A whole number beyond its type is refused before it is converted.
-  EXPECT_NE(error_of("tracker:\n  max_points: 18446744073709551616\n")
-                .find(":2: tracker.max_points = 1.8446744073709552e+19: must be a whole number in "
-                      "[0, 1.8446744073709552e+19)"),
-            std::string::npos)
-      << error_of("tracker:\n  max_points: 18446744073709551616\n");
+  has("tracker:\n  max_points: 18446744073709551616\n", ":2: tracker.max_points = 1.8446744073709552e+19: must be a whole number in "
+                      "[0, 1.8446744073709552e+19)");
   EXPECT_NE(error_of("camera:\n  width: 3e9\n").find(":2: camera.width = 3000000000: must be a whole number"),
             std::string::npos);
   EXPECT_EQ(error_of("seed: 9007199254740992\n"), "no error");  // 2^53
   // noise.scale scales the file's values after they are checked: a scaled value out of
   // range names the scale.
-  EXPECT_NE(error_of("noise:\n  scale: 60\n  axial: {a_m: 0.002}\n")
-                .find(":2: noise.scale = 60 makes noise.axial.a_m 0.12, which must be in [0, 0.1]"),
-            std::string::npos)
-      << error_of("noise:\n  scale: 60\n  axial: {a_m: 0.002}\n");
+  has("noise:\n  scale: 60\n  axial: {a_m: 0.002}\n", ":2: noise.scale = 60 makes noise.axial.a_m 0.12, which must be in [0, 0.1]");
   EXPECT_NE(error_of("[1, 2]: 3\n").find(":1: (top level): a key must be a plain name"),
             std::string::npos);
   EXPECT_EQ(error_of("duration_s: 1\n"), "no error");
@@ -130,10 +123,6 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
 
 // Sensor keys: bad values name their key and line.
 TEST_F(BadScene, SensorKeysNameLineAndKey) {
-  auto has = [&](const std::string& yaml, const std::string& needle) {
-    const std::string e = error_of(yaml);
-    EXPECT_NE(e.find(needle), std::string::npos) << "got: " << e;
-  };
   has("camera:\n  fx: 0\n", ":2: camera.fx = 0: must be in [0.001, 100000]");
   has("camera:\n  width: 0\n", "camera.width");
   has("camera:\n  z_min_m: 1.5\n  z_max_m: 1.0\n", ":3: camera.z_max_m = 1: must be > z_min_m (1.5)");
@@ -256,9 +245,7 @@ TEST_F(BadScene, ListItemDefaultsThatDependOnOtherKeys) {
   EXPECT_EQ(s.occluders[1].to_s, inf);
   EXPECT_EQ(s.occluders[2].from_s, -inf);
   EXPECT_EQ(s.occluders[2].to_s, inf);
-  std::ofstream(p) << "occluders:\n  - {to_s: 0}\n";  // would never appear
-  EXPECT_NE(error_of("occluders:\n  - {to_s: 0}\n").find(":2: occluders[0].to_s = 0: must be in (0, 1000000]"),
-            std::string::npos);
+  has("occluders:\n  - {to_s: 0}\n", ":2: occluders[0].to_s = 0: must be in (0, 1000000]");  // never there
 }
 
 // Every struct lists each key once.
