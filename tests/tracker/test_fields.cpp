@@ -149,9 +149,12 @@ TEST(Fields, TrackerParamsListTheSceneKeys) {
   TrackerParams p;
   Recorder r;
   p.fields(r);
-  EXPECT_EQ(r.keys, (std::vector<std::string>{"mode", "init", "poly_order", "max_points",
-                                              "som_init", "backend", "threads", "iterations",
-                                              "tolerance_m"}));
+  EXPECT_EQ(r.keys, (std::vector<std::string>{
+                        "mode", "init", "poly_order", "max_points", "som_init", "backend",
+                        "threads", "iterations", "tolerance_m", "chain_fit{", "max_iterations",
+                        "huber_m", "max_distance_m", "tolerance_m", "bend_sigma_deg",
+                        "straight_sigma_deg", "misfit_inliers", "misfit_rms_m", "reinit_gain",
+                        "}"}));
   ComponentGeometry g;
   Recorder rg;
   g.fields(rg);

@@ -2,28 +2,40 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
 namespace linksight {
 namespace {
 
-// The chain at one linearization point: centres, axes and each axis's tangent basis.
+// The chain at one linearization point: centres, axes and each axis's tangent basis, and
+// the components' centres and axes again as arrays for the per-point search.
 struct Frames {
   Nodes centre;                           // count + 1 (the last is the tip node)
   std::vector<Eigen::Vector3d> t1, t2;    // tangents of axis k, a rotation's directions
+  std::vector<double> cx, cy, cz, ax, ay, az;  // count each
 };
 
 Frames frames_of(const ChainState& chain, double pitch) {
   Frames f;
   f.centre = chain.nodes(pitch);
-  for (const Eigen::Vector3d& a : chain.axis) {
+  for (std::size_t k = 0; k < chain.axis.size(); ++k) {
+    const Eigen::Vector3d& a = chain.axis[k];
     const Eigen::Vector3d t = a.unitOrthogonal();
     f.t1.push_back(t);
     f.t2.push_back(a.cross(t));
+    f.cx.push_back(f.centre[k].x());
+    f.cy.push_back(f.centre[k].y());
+    f.cz.push_back(f.centre[k].z());
+    f.ax.push_back(a.x());
+    f.ay.push_back(a.y());
+    f.az.push_back(a.z());
   }
   return f;
 }
@@ -38,22 +50,19 @@ struct Part {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // outward, at the nearest point
 };
 
-Part component_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& c,
-                        const Eigen::Vector3d& a, const ComponentGeometry& g) {
-  Part out;
-  const Eigen::Vector3d d = p - c;
-  const double dn = d.norm();
-  out.distance = dn - g.ball_radius;
-  out.normal = dn > 0 ? Eigen::Vector3d(d / dn) : a;
-  const double s = std::clamp(d.dot(a), 0.0, g.neck_length);
-  const Eigen::Vector3d e = d - s * a;
-  const double en = e.norm();
-  if (en - g.neck_radius < out.distance) {
-    out.distance = en - g.neck_radius;
-    out.neck = true;
-    out.s = s;
-    out.normal = en > 0 ? Eigen::Vector3d(e / en) : a.unitOrthogonal();
-  }
+// The distance only (the search's inner step): d = p - c_k, dn2 = |d|^2.
+struct Candidate {
+  double distance;
+  double s;
+  bool neck;
+};
+inline Candidate candidate(double dx, double dy, double dz, double dn2, double ax, double ay,
+                           double az, const ComponentGeometry& g) {
+  Candidate out{std::sqrt(dn2) - g.ball_radius, 0.0, false};
+  const double s = std::clamp(dx * ax + dy * ay + dz * az, 0.0, g.neck_length);
+  const double ex = dx - s * ax, ey = dy - s * ay, ez = dz - s * az;
+  const double neck = std::sqrt(ex * ex + ey * ey + ez * ez) - g.neck_radius;
+  if (neck < out.distance) out = {neck, s, true};
   return out;
 }
 
@@ -62,20 +71,47 @@ struct Hit {
   Part part;
 };
 
-Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ChainState& chain,
-            const ComponentGeometry& g) {
+// `d2`: scratch of count entries.
+Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g, double* d2) {
+  const std::size_t count = f.cx.size();
+  if (count == 0) return {};
+  // Squared distances to every centre; the nearest centre's component is tried first.
+  std::size_t m = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const double dx = p.x() - f.cx[k], dy = p.y() - f.cy[k], dz = p.z() - f.cz[k];
+    d2[k] = dx * dx + dy * dy + dz * dz;
+    if (d2[k] < d2[m]) m = k;
+  }
+  const auto try_k = [&](std::size_t k) {
+    return candidate(p.x() - f.cx[k], p.y() - f.cy[k], p.z() - f.cz[k], d2[k], f.ax[k], f.ay[k],
+                     f.az[k], g);
+  };
+  Candidate best = try_k(m);
+  std::size_t bk = m;
   // Component k's surface lies within `reach` of its centre, so a point at |p - c_k| is at
-  // least |p - c_k| - reach from it: components that cannot beat the best are skipped.
+  // least |p - c_k| - reach from it: components that cannot beat the best are skipped
+  // (best + reach >= 0, as best >= -ball_radius). Ties go to the lower index.
   const double reach = std::max(g.ball_radius, g.neck_length + g.neck_radius);
-  Hit h;
-  for (std::size_t k = 0; k < chain.axis.size(); ++k) {
-    if ((p - f.centre[k]).norm() - reach >= h.part.distance) continue;
-    const Part part = component_distance(p, f.centre[k], chain.axis[k], g);
-    if (part.distance < h.part.distance) {
-      h.k = static_cast<int>(k);
-      h.part = part;
+  for (std::size_t k = 0; k < count; ++k) {
+    if (k == m) continue;
+    const double bound = best.distance + reach;
+    if (d2[k] >= bound * bound) continue;
+    const Candidate c = try_k(k);
+    if (c.distance < best.distance || (c.distance == best.distance && k < bk)) {
+      best = c;
+      bk = k;
     }
   }
+  Hit h;
+  h.k = static_cast<int>(bk);
+  h.part.distance = best.distance;
+  h.part.neck = best.neck;
+  h.part.s = best.s;
+  const Eigen::Vector3d a(f.ax[bk], f.ay[bk], f.az[bk]);
+  const Eigen::Vector3d d = p - Eigen::Vector3d(f.cx[bk], f.cy[bk], f.cz[bk]);
+  const Eigen::Vector3d e = best.neck ? Eigen::Vector3d(d - best.s * a) : d;
+  const double en = e.norm();
+  h.part.normal = en > 0 ? Eigen::Vector3d(e / en) : (best.neck ? a.unitOrthogonal() : a);
   return h;
 }
 
@@ -84,28 +120,147 @@ double huber(double r, double h) {
   return a <= h ? 0.5 * r * r : h * (a - 0.5 * h);
 }
 
-// The robust cost of the chain over the points; points beyond max_distance count as if
-// there, so that a step that pushes points out does not look cheaper. Also the inliers'
-// count and sum of squared distances.
-struct Cost {
+// A point's residual depends on its own component only, through u = [dc_k; dtheta_k]: the
+// move of ball k's centre and the tangent rotation of axis k (which moves a neck point by
+// s along the tangent). So a pass sums, per component, the 5x5 normal equations in u; the
+// chain rule to the chain's parameters is applied once per pass (assemble), not per point.
+using Mat5 = Eigen::Matrix<double, 5, 5>;
+using Vec5 = Eigen::Matrix<double, 5, 1>;
+
+// What one block of points contributes: per component the normal equations in u, the
+// inlier count, and the block's robust cost and inliers' sum of squared distances.
+struct Sums {
+  std::vector<Mat5> H;
+  std::vector<Vec5> b;
+  std::vector<std::int64_t> count;
   double robust = 0;
-  std::size_t inliers = 0;
   double sum2 = 0;
-};
-Cost cost(const PointsView& pts, const ChainState& chain, const ComponentGeometry& g,
-          const ChainFitParams& params) {
-  const Frames f = frames_of(chain, g.pitch);
-  Cost c;
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
-    const double r = nearest(p, f, chain, g).part.distance;
-    c.robust += huber(std::min(std::abs(r), params.max_distance), params.huber);
-    if (std::abs(r) <= params.max_distance) {
-      ++c.inliers;
-      c.sum2 += r * r;
+  std::size_t inliers = 0;
+
+  explicit Sums(std::size_t components)
+      : H(components, Mat5::Zero()), b(components, Vec5::Zero()), count(components, 0) {}
+  void add(const Sums& o) {
+    for (std::size_t k = 0; k < H.size(); ++k) {
+      H[k] += o.H[k];
+      b[k] += o.b[k];
+      count[k] += o.count[k];
     }
+    robust += o.robust;
+    sum2 += o.sum2;
+    inliers += o.inliers;
   }
-  return c;
+};
+
+void accumulate(const PointsView& pts, std::size_t begin, std::size_t end, std::size_t stride,
+                const Frames& f, const ComponentGeometry& g, const ChainFitParams& params,
+                Sums& s) {
+  std::vector<double> d2(f.cx.size());
+  for (std::size_t i = begin; i < end; i += stride) {
+    const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
+    const Hit hit = nearest(p, f, g, d2.data());
+    const double r = hit.part.distance;
+    // Points beyond max_distance count as if there, so that a step that pushes points
+    // out does not look cheaper.
+    s.robust += huber(std::min(std::abs(r), params.max_distance), params.huber);
+    if (hit.k < 0 || std::abs(r) > params.max_distance) continue;
+    const auto k = static_cast<std::size_t>(hit.k);
+    ++s.inliers;
+    ++s.count[k];
+    s.sum2 += r * r;
+    // dr/du: moving centre k by dc changes r by -n.dc; turning axis k moves the neck
+    // point by s along the turn's tangent (a ball point not at all).
+    const Eigen::Vector3d& nrm = hit.part.normal;
+    const double lever = hit.part.neck ? hit.part.s : 0.0;
+    Vec5 J;
+    J << -nrm, -lever * nrm.dot(f.t1[k]), -lever * nrm.dot(f.t2[k]);
+    const double w = std::abs(r) <= params.huber ? 1.0 : params.huber / std::abs(r);
+    Mat5& H = s.H[k];  // lower triangle only
+    for (int c = 0; c < 5; ++c)
+      for (int r2 = c; r2 < 5; ++r2) H(r2, c) += w * J[r2] * J[c];
+    s.b[k] -= w * r * J;
+  }
+}
+
+// Points are summed in fixed blocks, each block in order and the blocks in order, so the
+// sums are the same bits for any thread count (serial is one thread of the same code).
+constexpr std::size_t kBlock = 4096;
+
+// Every `stride`-th point (block starts are multiples of it).
+Sums pass(const PointsView& pts, const Frames& f, const ChainState& chain,
+          const ComponentGeometry& g, const ChainFitParams& params, int threads,
+          std::size_t stride = 1) {
+  const std::size_t components = chain.axis.size();
+  const std::size_t blocks = (pts.size() + kBlock - 1) / kBlock;
+  Sums total(components);
+  if (threads <= 1 || blocks <= 1) {
+    for (std::size_t blk = 0; blk < blocks; ++blk) {
+      Sums s(components);
+      accumulate(pts, blk * kBlock, std::min(pts.size(), (blk + 1) * kBlock), stride, f, g, params,
+                 s);
+      total.add(s);
+    }
+    return total;
+  }
+  std::vector<Sums> partial(blocks, Sums(components));
+  const auto n_blocks = static_cast<std::ptrdiff_t>(blocks);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
+  for (std::ptrdiff_t blk = 0; blk < n_blocks; ++blk) {
+    const auto b = static_cast<std::size_t>(blk);
+    accumulate(pts, b * kBlock, std::min(pts.size(), (b + 1) * kBlock), stride, f, g, params,
+               partial[b]);
+  }
+  for (const Sums& s : partial) total.add(s);
+  return total;
+}
+
+// The chain's normal equations from the components' (Gauss-Newton in x = [dc0;
+// dtheta_0..dtheta_{count-1}]): u_k = P_k x with dc_k = dc0 + pitch sum_{j<k} T_j
+// dtheta_j, T_j = [t1_j t2_j].
+void assemble(const Sums& s, const Frames& f, double pitch, Eigen::MatrixXd& H,
+              Eigen::VectorXd& b) {
+  const auto n = H.rows();
+  H.setZero();
+  b.setZero();
+  Eigen::Matrix<double, 5, Eigen::Dynamic> P(5, n);
+  for (std::size_t k = 0; k < s.H.size(); ++k) {
+    if (s.count[k] == 0) continue;
+    P.setZero();
+    P.block<3, 3>(0, 0).setIdentity();
+    for (std::size_t j = 0; j < k; ++j) {
+      const auto c = 3 + 2 * static_cast<Eigen::Index>(j);
+      P.block<3, 1>(0, c) = pitch * f.t1[j];
+      P.block<3, 1>(0, c + 1) = pitch * f.t2[j];
+    }
+    const auto c = 3 + 2 * static_cast<Eigen::Index>(k);
+    P(3, c) = 1.0;
+    P(4, c + 1) = 1.0;
+    const Mat5 Hk = s.H[k].selfadjointView<Eigen::Lower>();
+    H.noalias() += P.transpose() * Hk * P;
+    b.noalias() += P.transpose() * s.b[k];
+  }
+}
+
+// The shape prior (the link holds its shape unless pushed): joint k's bend, as the
+// difference of its axes a_k - a_{k-1}, stays near the prior chain's. A joint the points
+// constrain moves as they say (the prior weighs as much as a few points); a hidden one
+// keeps its bend, so the hidden part moves rigidly with what is seen. Adds the prior's
+// normal equations to H, b when given, and returns its cost.
+double shape_prior(const ChainState& chain, const Frames& f, const ChainState& shape,
+                   double weight, Eigen::MatrixXd* H, Eigen::VectorXd* b) {
+  double cost = 0;
+  for (std::size_t k = 1; k < chain.axis.size(); ++k) {
+    const Eigen::Vector3d r =
+        (chain.axis[k] - chain.axis[k - 1]) - (shape.axis[k] - shape.axis[k - 1]);
+    cost += 0.5 * weight * r.squaredNorm();
+    if (H == nullptr) continue;
+    // The step turns a_k by T_k dtheta_k to first order (stepped), T_k = [t1_k t2_k].
+    Eigen::Matrix<double, 3, 4> J;
+    J << -f.t1[k - 1], -f.t2[k - 1], f.t1[k], f.t2[k];
+    const auto c = 3 + 2 * static_cast<Eigen::Index>(k - 1);
+    H->block<4, 4>(c, c).noalias() += weight * J.transpose() * J;
+    b->segment<4>(c).noalias() -= weight * J.transpose() * r;
+  }
+  return cost;
 }
 
 ChainState stepped(const ChainState& chain, const Frames& f, const Eigen::VectorXd& dx) {
@@ -125,89 +280,127 @@ ChainState stepped(const ChainState& chain, const Frames& f, const Eigen::Vector
 
 }  // namespace
 
+void ChainFitParams::validate() const {
+  fields::check(*this, "chain_fit");
+  constexpr double kDeg = 3.14159265358979323846 / 180;
+  if (!(cone_limit >= 0.1 * kDeg && cone_limit <= 89.9 * kDeg))
+    fields::fail("chain", "cone_limit_deg", cone_limit / kDeg, "must be in [0.1, 89.9]");
+}
+
 SurfaceHit nearest_surface(const Eigen::Vector3d& p, const ChainState& chain,
                            const ComponentGeometry& geometry) {
-  const Hit h = nearest(p, frames_of(chain, geometry.pitch), chain, geometry);
+  std::vector<double> d2(chain.axis.size());
+  const Hit h = nearest(p, frames_of(chain, geometry.pitch), geometry, d2.data());
   return {h.k, h.part.distance};
 }
 
+double chain_cost(const PointsView& pts, const ChainState& chain, const ComponentGeometry& g,
+                  const ChainFitParams& params, int threads, std::size_t stride) {
+  params.validate();
+  if (threads <= 0) threads = omp_get_num_procs();
+  if (stride == 0) throw std::invalid_argument("chain_cost: stride must be at least 1");
+  return pass(pts, frames_of(chain, g.pitch), chain, g, params, threads, stride).robust;
+}
+
+ChainState slide_to_best(const PointsView& pts, const ChainState& start,
+                         const ComponentGeometry& g, const ChainFitParams& params,
+                         int threads) {
+  params.validate();
+  if (threads <= 0) threads = omp_get_num_procs();
+  const Nodes nodes = start.nodes(g.pitch);
+  const std::size_t last = start.axis.size() - 1;
+  ChainState best = start;
+  double best_cost = std::numeric_limits<double>::infinity();
+  constexpr int kSteps = 8;  // per pitch: the best start is within pitch/16 of the truth
+  for (int i = -kSteps / 2; i < kSteps / 2; ++i) {
+    const double shift = g.pitch * i / kSteps;
+    // Each node moves along the component it leads into (forward) or out of (backward):
+    // on a gently bent chain, very nearly the chain slid along itself.
+    Nodes moved = nodes;
+    for (std::size_t j = 0; j < nodes.size(); ++j) {
+      const std::size_t k = shift >= 0 ? std::min(j, last) : (j == 0 ? 0 : j - 1);
+      moved[j] += shift * start.axis[k];
+    }
+    const ChainState candidate = chain_from_nodes(moved, g);
+    const double c = pass(pts, frames_of(candidate, g.pitch), candidate, g, params, threads).robust;
+    if (c < best_cost) {
+      best_cost = c;
+      best = candidate;
+    }
+  }
+  return best;
+}
+
 ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
-                         const ComponentGeometry& g, const ChainFitParams& params) {
+                         const ComponentGeometry& g, const ChainFitParams& params, int threads,
+                         const ChainState* shape) {
   params.validate();
   g.validate();
   const int count = static_cast<int>(chain.axis.size());
   if (count != g.count)
     throw std::invalid_argument("fit_chain: the chain has " + std::to_string(count) +
                                 " axes, the geometry " + std::to_string(g.count) + " components");
+  if (threads <= 0) threads = omp_get_num_procs();
+  if (shape != nullptr && shape->axis.size() != chain.axis.size())
+    throw std::invalid_argument("fit_chain: the shape prior has " +
+                                std::to_string(shape->axis.size()) + " axes, the chain " +
+                                std::to_string(count));
   const Eigen::Index n = 3 + 2 * count;
   ChainFitResult result;
   double lambda = 1e-4;  // damping, relative to the diagonal (Levenberg-Marquardt)
-  Cost current;          // of `chain`, from the pass that linearizes at it
   Eigen::MatrixXd H(n, n);
-  Eigen::VectorXd b(n), J(n);
+  Eigen::VectorXd b(n);
+  // One pass per iteration: it linearizes at the chain and gives the chain's cost; a
+  // trial that costs more is dropped and the damping raised (one more pass).
+  Frames f = frames_of(chain, g.pitch);
+  Sums current = pass(pts, f, chain, g, params, threads);
+  ++result.passes;
+  // The prior's weight: a bend change of bend_sigma costs what a point at the Huber
+  // threshold does.
+  const double prior_weight =
+      shape ? std::pow(params.huber / params.bend_sigma, 2) : 0.0;
+  const auto normal_equations = [&](const Sums& s, const ChainState& c, const Frames& fr) {
+    assemble(s, fr, g.pitch, H, b);
+    return s.robust + (shape ? shape_prior(c, fr, *shape, prior_weight, &H, &b) : 0.0);
+  };
+  double current_cost = normal_equations(current, chain, f);
   for (int it = 0; it < params.max_iterations; ++it) {
-    // One pass: the association, the normal equations and the cost at the current chain.
-    const Frames f = frames_of(chain, g.pitch);
-    H.setZero();
-    b.setZero();
-    current = {};
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
-      const Hit hit = nearest(p, f, chain, g);
-      const double r = hit.part.distance;
-      current.robust += huber(std::min(std::abs(r), params.max_distance), params.huber);
-      if (hit.k < 0 || std::abs(r) > params.max_distance) continue;
-      ++current.inliers;
-      current.sum2 += r * r;
-      // dr/dx: moving centre k by dc changes r by -n.dc; turning axis j < k by a tangent
-      // moves centre k by pitch along it; turning axis k moves the neck point by s along it.
-      const Eigen::Vector3d& nrm = hit.part.normal;
-      J.setZero();
-      J.head<3>() = -nrm;
-      for (int j = 0; j <= hit.k; ++j) {
-        const double lever = j < hit.k ? g.pitch : (hit.part.neck ? hit.part.s : 0.0);
-        if (lever == 0.0) continue;
-        const auto sj = static_cast<std::size_t>(j);
-        J[3 + 2 * j] = -lever * nrm.dot(f.t1[sj]);
-        J[4 + 2 * j] = -lever * nrm.dot(f.t2[sj]);
-      }
-      const double w = std::abs(r) <= params.huber ? 1.0 : params.huber / std::abs(r);
-      H.selfadjointView<Eigen::Lower>().rankUpdate(J, w);
-      b -= w * r * J;
+    // A parameter nothing constrains (an axis of a hidden component without a shape
+    // prior) has a zero row: the floor keeps it where it is.
+    Eigen::MatrixXd A = H;
+    for (Eigen::Index d = 0; d < n; ++d) A(d, d) += lambda * H(d, d) + 1e-12;
+    const Eigen::VectorXd dx = A.ldlt().solve(b);
+    ChainState trial = stepped(chain, f, dx);
+    limit_bends(trial, params.cone_limit);
+    double moved = 0;
+    const Nodes after = trial.nodes(g.pitch);
+    for (std::size_t k = 0; k < after.size(); ++k)
+      moved = std::max(moved, (after[k] - f.centre[k]).norm());
+    if (moved <= params.tolerance) {  // a minimum, within the tolerance: the step is taken
+      chain = std::move(trial);      // unchecked (one pass less; it moves next to nothing)
+      break;
     }
-    H = H.selfadjointView<Eigen::Lower>();
-    // Damped steps until one lowers the cost. A parameter no point constrains (an axis
-    // of a hidden component) has a zero row: the floor keeps it where it is.
-    bool accepted = false, converged = false;
-    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
-      Eigen::MatrixXd A = H;
-      for (Eigen::Index d = 0; d < n; ++d) A(d, d) += lambda * H(d, d) + 1e-12;
-      const Eigen::VectorXd dx = A.ldlt().solve(b);
-      ChainState trial = stepped(chain, f, dx);
-      limit_bends(trial, params.cone_limit);
-      double moved = 0;
-      const Nodes after = trial.nodes(g.pitch);
-      for (std::size_t k = 0; k < after.size(); ++k)
-        moved = std::max(moved, (after[k] - f.centre[k]).norm());
-      if (moved <= params.tolerance) {  // the step would move nothing: a minimum
-        converged = true;
-        break;
-      }
-      const Cost c = cost(pts, trial, g, params);
-      if (c.robust <= current.robust) {
-        chain = std::move(trial);
-        current = c;
-        lambda = std::max(lambda / 10, 1e-9);
-        accepted = true;
-        result.iterations = it + 1;
-      } else {
-        lambda *= 10;
-      }
+    Frames tf = frames_of(trial, g.pitch);
+    Sums ts = pass(pts, tf, trial, g, params, threads);
+    ++result.passes;
+    const double trial_cost =
+        ts.robust + (shape ? shape_prior(trial, tf, *shape, prior_weight, nullptr, nullptr) : 0.0);
+    if (trial_cost <= current_cost) {
+      chain = std::move(trial);
+      f = std::move(tf);
+      current = std::move(ts);
+      current_cost = normal_equations(current, chain, f);
+      lambda = std::max(lambda / 10, 1e-9);
+      result.iterations = it + 1;
+    } else {
+      lambda *= 10;
+      if (lambda > 1e8) break;  // no damped step lowers the cost
     }
-    if (!accepted || converged) break;  // no damped step lowers the cost, or none moves
   }
   result.inliers = current.inliers;
   result.rms = current.inliers ? std::sqrt(current.sum2 / static_cast<double>(current.inliers)) : 0.0;
+  result.cost = current.robust;
+  result.counts = std::move(current.count);
   return result;
 }
 

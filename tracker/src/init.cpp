@@ -4,9 +4,13 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
+#include <vector>
 
 namespace linksight {
 namespace {
@@ -268,6 +272,56 @@ Nodes som_init(const PointsView& points, int n_nodes, SomInit method, std::uint6
   }
   orient(nodes, nullptr);
   return nodes;
+}
+
+std::vector<std::size_t> largest_cluster(const PointsView& points, double cell) {
+  if (!(cell > 0)) throw std::invalid_argument("largest_cluster: cell must be > 0 m");
+  const std::size_t n = points.size();
+  // Cells keyed by their integer coordinates (points are within kMaxCoordinate, so 21
+  // bits each hold any cell of 1 mm or more), numbered in order of first appearance.
+  const auto key = [](std::int64_t i, std::int64_t j, std::int64_t k) {
+    constexpr std::int64_t kBias = std::int64_t{1} << 20;
+    return ((i + kBias) << 42) | ((j + kBias) << 21) | (k + kBias);
+  };
+  std::unordered_map<std::int64_t, std::size_t> cell_of;
+  std::vector<std::array<std::int64_t, 3>> coords;
+  std::vector<std::size_t> point_cell(n);
+  for (std::size_t p = 0; p < n; ++p) {
+    const std::array<std::int64_t, 3> c{static_cast<std::int64_t>(std::floor(points.x[p] / cell)),
+                                        static_cast<std::int64_t>(std::floor(points.y[p] / cell)),
+                                        static_cast<std::int64_t>(std::floor(points.z[p] / cell))};
+    const auto [it, fresh] = cell_of.try_emplace(key(c[0], c[1], c[2]), coords.size());
+    if (fresh) coords.push_back(c);
+    point_cell[p] = it->second;
+  }
+  // Union-find over the cells, the root always the lowest-numbered cell of its set.
+  std::vector<std::size_t> parent(coords.size());
+  for (std::size_t c = 0; c < parent.size(); ++c) parent[c] = c;
+  const auto find = [&](std::size_t c) {
+    while (parent[c] != c) c = parent[c] = parent[parent[c]];
+    return c;
+  };
+  for (std::size_t c = 0; c < coords.size(); ++c) {
+    for (std::int64_t di = -1; di <= 1; ++di)
+      for (std::int64_t dj = -1; dj <= 1; ++dj)
+        for (std::int64_t dk = -1; dk <= 1; ++dk) {
+          const auto it = cell_of.find(key(coords[c][0] + di, coords[c][1] + dj, coords[c][2] + dk));
+          if (it == cell_of.end()) continue;
+          const std::size_t a = find(c), b = find(it->second);
+          if (a != b) parent[std::max(a, b)] = std::min(a, b);
+        }
+  }
+  std::vector<std::size_t> size(coords.size(), 0);
+  for (std::size_t p = 0; p < n; ++p) ++size[find(point_cell[p])];
+  // The first point's cell numbers lowest among its cluster's, so scanning roots in cell
+  // order breaks ties by the lowest point index.
+  std::size_t best = 0;
+  for (std::size_t c = 0; c < size.size(); ++c)
+    if (size[c] > size[best]) best = c;
+  std::vector<std::size_t> out;
+  for (std::size_t p = 0; p < n; ++p)
+    if (find(point_cell[p]) == best) out.push_back(p);
+  return out;
 }
 
 }  // namespace linksight

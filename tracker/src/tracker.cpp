@@ -26,6 +26,8 @@ std::string_view to_string(InitReason r) {
       return "first_frame";
     case InitReason::empty_neighbourhood:
       return "empty_neighbourhood";
+    case InitReason::misfit:
+      return "misfit";
   }
   return "unknown";
 }
@@ -154,6 +156,16 @@ FrameResult Tracker::step(const Cloud& cloud) {
     initialized_now = true;
   }
 
+  if (s.update->fits_frame()) {
+    if (s.update->fit_frame(view, initialized_now, *s.init, s.nodes, s.acc.count)) {
+      r.reinit = true;
+      r.init_reason = InitReason::misfit;
+    }
+    s.has_association = false;
+    r.iterations = 1;
+    return finish(r, t0);
+  }
+
   // Algorithm 1, lines 8-21. A re-initialization restarts the iteration count once, so
   // the output is always SOM-refined; a second empty neighbourhood in the same frame
   // leaves that node where it is (LSQ on the same cloud would give the same nodes).
@@ -179,14 +191,26 @@ FrameResult Tracker::step(const Cloud& cloud) {
     const double max_move = s.update->update(view, s.acc, *s.backend, s.nodes);
     if (params_.tolerance > 0.0 && max_move <= params_.tolerance) break;
   }
+  return finish(r, t0);
+}
+
+FrameResult& Tracker::finish(FrameResult& r, std::chrono::steady_clock::time_point t0) {
+  State& s = *state_;
   s.has_previous = true;
   r.nodes = s.output->output(s.nodes);
   r.counts = s.acc.count;
-  r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   r.device_time_s = s.backend->device_seconds();
+  const PointsView view{{s.x.data(), s.x.size()}, {s.y.data(), s.y.size()}, {s.z.data(), s.z.size()}};
   r.sdf_error = params_.compute_sdf ? sdf_error(view, r.nodes, params_.geometry)
                                     : std::numeric_limits<double>::quiet_NaN();
   return r;
+}
+
+bool UpdatePolicy::fit_frame(const PointsView& /*points*/, bool /*restarted*/,
+                             const InitPolicy& /*init*/, Nodes& /*nodes*/,
+                             std::vector<std::int64_t>& /*counts*/) {
+  throw std::logic_error("UpdatePolicy::fit_frame: this policy updates per iteration");
 }
 
 }  // namespace linksight

@@ -5,6 +5,8 @@
 /// the SDF metric, ComponentGeometry::sdf).
 
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 #include "linksight/tracker/chain_state.hpp"
 #include "linksight/tracker/fields.hpp"
@@ -20,9 +22,25 @@ struct ChainFitParams {
   double huber = 0.001;
   /// A point farther than this from every component surface is not the link's [m].
   double max_distance = 0.01;
-  /// Stop when no centre moves more than this in an iteration [m].
-  double tolerance = 1e-8;
-  /// The largest bend between neighbouring components [rad] (the chain's cone limit).
+  /// Stop after a step that moves no centre more than this [m] (0.01 mm: 5x below the
+  /// noise-free accuracy target; each further step is a pass over every point).
+  double tolerance = 1e-5;
+  /// With a shape prior: how far a joint's bend may change from the prior's, as one σ
+  /// (the link holds its shape unless pushed; a hidden joint keeps its bend) [rad].
+  double bend_sigma = 0.3 * 3.14159265358979323846 / 180.0;
+  /// After an initialization (no shape yet): how far a joint may bend from straight, as
+  /// one σ; a joint the points do not show comes out straight [rad].
+  double straight_sigma = 5.0 * 3.14159265358979323846 / 180.0;
+  /// Loss: a frame whose fit keeps fewer than this fraction of the previous frame's
+  /// inliers, or whose inliers' RMS distance exceeds misfit_rms, is fitted again from a
+  /// fresh initialization, and that fit is taken when its robust cost is below
+  /// reinit_gain times the tracked fit's (an occlusion also drops inliers: a fresh start
+  /// from the visible part must be far better, not merely as good, to replace the track).
+  double misfit_inliers = 0.5;
+  double misfit_rms = 0.002;  ///< [m]
+  double reinit_gain = 0.5;
+  /// The largest bend between neighbouring components [rad]: the chain's cone limit, not
+  /// a key of this block (a scene sets it from chain.cone_limit_deg).
   double cone_limit = 25.0 * 3.14159265358979323846 / 180.0;
 
   template <class Archive>
@@ -31,15 +49,23 @@ struct ChainFitParams {
     ar("huber_m", huber, fields::in(1e-6, 0.1));
     ar("max_distance_m", max_distance, fields::in(1e-4, 1));
     ar("tolerance_m", tolerance, fields::in(0, 1e-3));
-    ar("cone_limit_deg", cone_limit, fields::deg(fields::in(0.1, 89.9)));
+    ar("bend_sigma_deg", bend_sigma, fields::deg(fields::in(0.01, 90)));
+    ar("straight_sigma_deg", straight_sigma, fields::deg(fields::in(0.01, 90)));
+    ar("misfit_inliers", misfit_inliers, fields::in(0, 1));
+    ar("misfit_rms_m", misfit_rms, fields::in(1e-4, 1));
+    ar("reinit_gain", reinit_gain, fields::in(0, 1));
   }
-  void validate() const { fields::check(*this, "chain_fit"); }
+  /// Throws fields::FieldError naming the key (cone_limit as the chain's cone_limit_deg).
+  void validate() const;
 };
 
 struct ChainFitResult {
-  int iterations = 0;
+  int iterations = 0;       ///< accepted Levenberg-Marquardt steps
+  int passes = 0;           ///< passes over the points (one per step tried, plus the first)
   std::size_t inliers = 0;  ///< points within max_distance of the fitted chain's surface
   double rms = 0.0;         ///< RMS distance of the inliers to the surface [m]
+  double cost = 0.0;        ///< robust cost of the points (without the shape prior)
+  std::vector<std::int64_t> counts;  ///< inliers nearest each component (count entries)
 };
 
 /// The component a point lies nearest to (by the component SDF) and its signed distance
@@ -51,12 +77,32 @@ struct SurfaceHit {
 [[nodiscard]] SurfaceHit nearest_surface(const Eigen::Vector3d& p, const ChainState& chain,
                                          const ComponentGeometry& geometry);
 
-/// Fits `chain` (the start, updated in place) to `points` [m, C]: each iteration
-/// associates every point with its nearest component surface, then takes one damped
-/// Gauss–Newton step in ball 0's centre and the axes' tangent rotations with Huber
-/// weights, renormalizes the axes and bends joints back within the cone limit. The pitch
-/// holds exactly throughout. Serial and deterministic (points summed in order).
+/// Fits `chain` (the start, updated in place) to `points` [m, C]: each pass associates
+/// every point with its nearest component surface and sums, per component, the
+/// Huber-weighted normal equations in that component's centre and axis; one damped
+/// Gauss–Newton (Levenberg–Marquardt) step in ball 0's centre and the axes' tangent
+/// rotations follows, the axes renormalized and the joints bent back within the cone
+/// limit. The pitch holds exactly throughout. A step that raises the cost is dropped.
+/// `threads` (0: one per core) share the passes; points are summed in fixed blocks in a
+/// fixed order, so the result is the same bits for any thread count. `shape`, when
+/// given, is a shape prior: each joint's bend is held near `shape`'s with σ
+/// params.bend_sigma (the previous frame's shape, moved with the link).
 ChainFitResult fit_chain(const PointsView& points, ChainState& chain,
-                         const ComponentGeometry& geometry, const ChainFitParams& params);
+                         const ComponentGeometry& geometry, const ChainFitParams& params,
+                         int threads = 1, const ChainState* shape = nullptr);
+
+/// The fit's robust cost (Huber, points beyond max_distance counted at it) of `chain` over
+/// every `stride`-th point: to choose between starts cheaply.
+[[nodiscard]] double chain_cost(const PointsView& points, const ChainState& chain,
+                                const ComponentGeometry& geometry, const ChainFitParams& params,
+                                int threads = 1, std::size_t stride = 1);
+
+/// `start` slid along itself by the shift in [-pitch/2, pitch/2) (steps of pitch/8) whose
+/// points fit best (robust cost, one pass each). A start laid out from the cloud's extent
+/// (LSQ) is a ball radius or more off along the link, and a fit from about half a pitch
+/// off settles with the balls on the necks: this puts the start within the fit's reach.
+[[nodiscard]] ChainState slide_to_best(const PointsView& points, const ChainState& start,
+                                       const ComponentGeometry& geometry,
+                                       const ChainFitParams& params, int threads = 1);
 
 }  // namespace linksight

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <vector>
 #include <string_view>
 
 #include "linksight/tracker/fields.hpp"
@@ -49,6 +50,14 @@ struct InitParams {
 /// a horizontal link, top end of a hanging one). Requires points.size() >= 1.
 [[nodiscard]] Nodes lsq_init(const PointsView& points, int n_nodes, const InitParams& params,
                              const Nodes* previous = nullptr);
+
+/// The indices (ascending) of the points in the largest connected cluster: two points
+/// are connected when their cells of a `cell`-sized grid touch (26-neighbourhood), so
+/// points closer than `cell` always are and points farther than 2√3 `cell` never are.
+/// For an initialization that should see the link and not clutter set apart from it
+/// (a mug behind, a table edge). Ties go to the cluster holding the lowest point index.
+/// Throws std::invalid_argument unless cell > 0.
+[[nodiscard]] std::vector<std::size_t> largest_cluster(const PointsView& points, double cell);
 
 enum class SomInit {
   straight_line,  ///< evenly spaced on the principal-axis segment spanned by the cloud

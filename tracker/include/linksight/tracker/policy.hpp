@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <string_view>
+#include <vector>
 
 #include "linksight/tracker/backend.hpp"
 #include "linksight/tracker/chain_fit.hpp"
@@ -37,6 +38,16 @@ class UpdatePolicy {
   virtual ~UpdatePolicy() = default;
   virtual double update(const PointsView& points, const Accumulation& acc, Backend& backend,
                         Nodes& nodes) const = 0;
+  /// True for a policy that fits a whole frame at once (chain-fit): the tracker then calls
+  /// fit_frame once per frame, with no back-end association and no iterations around it.
+  [[nodiscard]] virtual bool fits_frame() const { return false; }
+  /// The frame's nodes from the previous frame's (`nodes`, updated in place), or from an
+  /// initialization's when `restarted` (first frame, re-initialization: nothing earlier
+  /// frames said holds). `counts`: the points each node accounts for (nodes.size()).
+  /// The policy may re-initialize from `init` on its own evidence: returns whether the
+  /// output came from a re-initialization.
+  virtual bool fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
+                         Nodes& nodes, std::vector<std::int64_t>& counts);
 };
 
 /// After an association (not in the frame that just initialized): the node whose

@@ -2,6 +2,7 @@
 /// @file The shape tracker: Algorithm 1's frame loop (association by a back end, then a
 /// mode's policies: init, update, re-initialization trigger, output; mode.hpp).
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -46,6 +47,7 @@ struct TrackerParams {
     ar("threads", threads, fields::in(0, kMaxThreads));
     ar("iterations", iterations, fields::in(1, kMaxIterations));
     ar("tolerance_m", tolerance, fields::in(0, 1));
+    ar("chain_fit", policy.chain_fit);  // update chain-fit's settings, a block
   }
   /// Throws fields::FieldError naming the offending key and value.
   void validate() const;
@@ -55,6 +57,9 @@ enum class InitReason : std::uint8_t {
   none,                 ///< continued from the previous frame's output
   first_frame,          ///< no previous output (first frame or after reset())
   empty_neighbourhood,  ///< a node had no points (Sec. IV.C): re-initialized by LSQ
+  /// chain-fit: the fit lost the points (inliers fell, or residuals rose; ChainFitParams)
+  /// and a fit from a fresh initialization explains them far better
+  misfit,
 };
 
 enum class LostReason : std::uint8_t {
@@ -109,6 +114,8 @@ class Tracker {
 
  private:
   struct State;
+  // The frame's output from the state's nodes, its time and its SDF error.
+  FrameResult& finish(FrameResult& r, std::chrono::steady_clock::time_point t0);
   TrackerParams params_;
   std::unique_ptr<State> state_;
 };
