@@ -42,6 +42,20 @@ constexpr double kSlipUpTo = 0.10;
 // fraction, averaged over its frames), and nothing outside its window: else the cell did
 // not test what its axis value says.
 constexpr double kFractionTol = 0.05;
+// chain-fit (issue 17's targets, docs/robustness.md has the measured values): at noise up
+// to 2x and up to half the link hidden, no swap and no slip (no node nearest another true
+// ball), back within kChainFitRecoveredMargin of its error before the board within
+// kRecoverFrames, and its worst frame while the board is there below kChainFitWorstStill
+// (still link) or kChainFitWorstMoving (moving). Measured on the CI grid: worst 2.4 mm
+// still, 4.0 mm moving, recovery 0 frames. At nominal noise before the board, below
+// kChainFitNodeErrBand (measured 0.26-0.30 mm); without noise, below
+// kChainFitNoiseFreeBand (measured 0.01 mm).
+constexpr double kChainFitMaxNoise = 2.0;
+constexpr double kChainFitRecoveredMargin = 0.001;
+constexpr double kChainFitWorstStill = 0.005;
+constexpr double kChainFitWorstMoving = 0.010;
+constexpr double kChainFitNodeErrBand = 0.0005;
+constexpr double kChainFitNoiseFreeBand = 0.00005;
 // Frames the tracker gets to settle before the pre-occlusion error is taken.
 constexpr int kSettleFrames = 10;
 
@@ -52,10 +66,12 @@ std::string env(const char* name, const char* fallback) {
 
 struct ModeResult {
   int non_finite = 0, lost = 0, swaps = 0, swap_frames = 0;
+  int misassigned = 0;      // nodes nearest another true ball, summed over frames (slips)
   double before = NAN;      // median mean node error over the clear frames before [m]
   double sdf_before = NAN;  // mean SDF metric over the same frames [m]
   double worst = 0;         // largest per-frame mean node error [m]
   int recover = -1;         // frames after the board left until back within the margin
+  int recover_1mm = -1;     // the same within kChainFitRecoveredMargin
 };
 
 double median(std::vector<double> v) {
@@ -106,6 +122,7 @@ CellResult run(const Scene& scene, const std::vector<TrackerMode>& modes) {
       for (const Eigen::Vector3d& q : fr.nodes) mr.non_finite += !q.allFinite();
       mr.non_finite += !std::isfinite(s.mean_err) + !std::isfinite(fr.sdf_error);
       mr.swaps += s.swaps;
+      mr.misassigned += s.misassigned;
       mr.swap_frames += s.swaps > 0;
       mr.worst = std::max(mr.worst, s.mean_err);
       if (before) {
@@ -115,6 +132,9 @@ CellResult run(const Scene& scene, const std::vector<TrackerMode>& modes) {
       if (f.t >= to - 1e-9 && mr.recover < 0 && !err[k].empty() &&
           s.mean_err <= median(err[k]) + kRecoveredMargin)
         mr.recover = f.frame - end_frame;
+      if (f.t >= to - 1e-9 && mr.recover_1mm < 0 && !err[k].empty() &&
+          s.mean_err <= median(err[k]) + kChainFitRecoveredMargin)
+        mr.recover_1mm = f.frame - end_frame;
     }
   }
   for (std::size_t k = 0; k < m; ++k) {
@@ -145,8 +165,8 @@ TEST(Robustness, Bands) {
     ADD_FAILURE() << "the grid has no axis " << key;
     return std::nan("");
   };
-  std::printf("%-34s %-16s %6s %6s %8s %8s %8s %6s %6s %8s\n", "cell", "mode", "noise",
-              "occl", "err_mm", "worst_mm", "sdf_mm", "swaps", "recov", "occl_in");
+  std::printf("%-34s %-16s %6s %6s %8s %8s %8s %6s %6s %6s %8s\n", "cell", "mode", "noise",
+              "occl", "err_mm", "worst_mm", "sdf_mm", "swaps", "slips", "recov", "occl_in");
   int cells_with_events = 0;
   for (std::size_t i = 0; i < spec.cells(); ++i) {
     const SweepCell cell = sweep_cell(spec, i);
@@ -170,10 +190,10 @@ TEST(Robustness, Bands) {
     for (std::size_t k = 0; k < modes.size(); ++k) {
       const ModeResult& mr = r[k];
       const std::string mode(to_string(modes[k]));
-      std::printf("%-34s %-16s %6.2f %6.2f %8.2f %8.2f %8.2f %6d %6d %8.3f\n",
+      std::printf("%-34s %-16s %6.2f %6.2f %8.2f %8.2f %8.2f %6d %6d %6d %8.3f\n",
                   ("cell " + std::to_string(i)).c_str(), mode.c_str(), noise, occl,
-                  mr.before * 1e3, mr.worst * 1e3, mr.sdf_before * 1e3, mr.swaps, mr.recover,
-                  result.occluded_in);
+                  mr.before * 1e3, mr.worst * 1e3, mr.sdf_before * 1e3, mr.swaps,
+                  mr.misassigned, mr.recover, result.occluded_in);
       SCOPED_TRACE(name + " mode=" + mode);
       // Everywhere: no NaN, no lost frame (half the link stays in view).
       EXPECT_EQ(mr.non_finite, 0);
@@ -212,6 +232,22 @@ TEST(Robustness, Bands) {
       if (paper_som && noise <= 1.0 && may_slip) {
         EXPECT_LT(mr.worst, test::kSlipBand);
         EXPECT_EQ(mr.swaps, 0);
+      }
+      if (modes[k] == parse_mode("chain-fit") && noise <= kChainFitMaxNoise) {
+        EXPECT_EQ(mr.swaps, 0);
+        EXPECT_EQ(mr.misassigned, 0) << "a slip: some node nearest another true ball";
+        const bool moving = scene_file.find("moving") != std::string::npos;
+        EXPECT_LT(mr.worst, moving ? kChainFitWorstMoving : kChainFitWorstStill);
+        if (occl > 0) {
+          EXPECT_GE(mr.recover_1mm, 0) << "never back within 1 mm of the error before";
+          EXPECT_LE(mr.recover_1mm, kRecoverFrames);
+        }
+        if (noise == 1.0) {
+          EXPECT_LT(mr.before, kChainFitNodeErrBand);
+        }
+        if (noise == 0.0) {
+          EXPECT_LT(mr.before, kChainFitNoiseFreeBand);
+        }
       }
     }
   }

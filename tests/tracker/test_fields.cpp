@@ -152,7 +152,7 @@ TEST(Fields, TrackerParamsListTheSceneKeys) {
   EXPECT_EQ(r.keys, (std::vector<std::string>{
                         "mode", "init", "poly_order", "max_points", "som_init", "backend",
                         "threads", "iterations", "tolerance_m", "chain_fit{", "max_iterations",
-                        "huber_m", "max_distance_m", "tolerance_m", "bend_sigma_deg",
+                        "huber_m", "max_distance_m", "tolerance_m", "reassociate_m", "bend_sigma_deg",
                         "straight_sigma_deg", "misfit_inliers", "misfit_rms_m", "reinit_gain",
                         "}"}));
   ComponentGeometry g;

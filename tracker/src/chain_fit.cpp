@@ -71,6 +71,21 @@ struct Hit {
   Part part;
 };
 
+// The hit on component k from its candidate: the outward normal at the nearest point.
+Hit hit_of(const Eigen::Vector3d& p, const Frames& f, std::size_t k, const Candidate& c) {
+  Hit h;
+  h.k = static_cast<int>(k);
+  h.part.distance = c.distance;
+  h.part.neck = c.neck;
+  h.part.s = c.s;
+  const Eigen::Vector3d a(f.ax[k], f.ay[k], f.az[k]);
+  const Eigen::Vector3d d = p - Eigen::Vector3d(f.cx[k], f.cy[k], f.cz[k]);
+  const Eigen::Vector3d e = c.neck ? Eigen::Vector3d(d - c.s * a) : d;
+  const double en = e.norm();
+  h.part.normal = en > 0 ? Eigen::Vector3d(e / en) : (c.neck ? a.unitOrthogonal() : a);
+  return h;
+}
+
 // `d2`: scratch of count entries.
 Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g, double* d2) {
   const std::size_t count = f.cx.size();
@@ -102,17 +117,15 @@ Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& 
       bk = k;
     }
   }
-  Hit h;
-  h.k = static_cast<int>(bk);
-  h.part.distance = best.distance;
-  h.part.neck = best.neck;
-  h.part.s = best.s;
-  const Eigen::Vector3d a(f.ax[bk], f.ay[bk], f.az[bk]);
-  const Eigen::Vector3d d = p - Eigen::Vector3d(f.cx[bk], f.cy[bk], f.cz[bk]);
-  const Eigen::Vector3d e = best.neck ? Eigen::Vector3d(d - best.s * a) : d;
-  const double en = e.norm();
-  h.part.normal = en > 0 ? Eigen::Vector3d(e / en) : (best.neck ? a.unitOrthogonal() : a);
-  return h;
+  return hit_of(p, f, bk, best);
+}
+
+// Component k's distance to p with the normal there.
+Hit hit_on(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g,
+           std::size_t k) {
+  const double dx = p.x() - f.cx[k], dy = p.y() - f.cy[k], dz = p.z() - f.cz[k];
+  return hit_of(p, f, k,
+                candidate(dx, dy, dz, dx * dx + dy * dy + dz * dz, f.ax[k], f.ay[k], f.az[k], g));
 }
 
 double huber(double r, double h) {
@@ -151,13 +164,27 @@ struct Sums {
   }
 };
 
+// Which component each point is taken to lie on. A pass either searches (and records
+// what it found, when `assoc` is given) or, after a step too small to change it, reuses
+// the recorded one: a pass then costs one component's distance per point, not a search.
+struct Association {
+  std::int16_t* assoc = nullptr;
+  bool reuse = false;
+};
+
 void accumulate(const PointsView& pts, std::size_t begin, std::size_t end, std::size_t stride,
                 const Frames& f, const ComponentGeometry& g, const ChainFitParams& params,
-                Sums& s) {
+                Association a, Sums& s) {
   std::vector<double> d2(f.cx.size());
   for (std::size_t i = begin; i < end; i += stride) {
     const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
-    const Hit hit = nearest(p, f, g, d2.data());
+    Hit hit;
+    if (a.reuse) {
+      hit = hit_on(p, f, g, static_cast<std::size_t>(a.assoc[i]));
+    } else {
+      hit = nearest(p, f, g, d2.data());
+      if (a.assoc != nullptr) a.assoc[i] = static_cast<std::int16_t>(hit.k);
+    }
     const double r = hit.part.distance;
     // Points beyond max_distance count as if there, so that a step that pushes points
     // out does not look cheaper.
@@ -188,7 +215,7 @@ constexpr std::size_t kBlock = 4096;
 // Every `stride`-th point (block starts are multiples of it).
 Sums pass(const PointsView& pts, const Frames& f, const ChainState& chain,
           const ComponentGeometry& g, const ChainFitParams& params, int threads,
-          std::size_t stride = 1) {
+          std::size_t stride = 1, Association a = {}) {
   const std::size_t components = chain.axis.size();
   const std::size_t blocks = (pts.size() + kBlock - 1) / kBlock;
   Sums total(components);
@@ -196,7 +223,7 @@ Sums pass(const PointsView& pts, const Frames& f, const ChainState& chain,
     for (std::size_t blk = 0; blk < blocks; ++blk) {
       Sums s(components);
       accumulate(pts, blk * kBlock, std::min(pts.size(), (blk + 1) * kBlock), stride, f, g, params,
-                 s);
+                 a, s);
       total.add(s);
     }
     return total;
@@ -207,7 +234,7 @@ Sums pass(const PointsView& pts, const Frames& f, const ChainState& chain,
   for (std::ptrdiff_t blk = 0; blk < n_blocks; ++blk) {
     const auto b = static_cast<std::size_t>(blk);
     accumulate(pts, b * kBlock, std::min(pts.size(), (b + 1) * kBlock), stride, f, g, params,
-               partial[b]);
+               a, partial[b]);
   }
   for (const Sums& s : partial) total.add(s);
   return total;
@@ -311,7 +338,7 @@ ChainState slide_to_best(const PointsView& pts, const ChainState& start,
   const std::size_t last = start.axis.size() - 1;
   ChainState best = start;
   double best_cost = std::numeric_limits<double>::infinity();
-  constexpr int kSteps = 8;  // per pitch: the best start is within pitch/16 of the truth
+  constexpr int kSteps = kSlideCandidates;  // per pitch: the best start is within pitch/16
   for (int i = -kSteps / 2; i < kSteps / 2; ++i) {
     const double shift = g.pitch * i / kSteps;
     // Each node moves along the component it leads into (forward) or out of (backward):
@@ -353,7 +380,10 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   // One pass per iteration: it linearizes at the chain and gives the chain's cost; a
   // trial that costs more is dropped and the damping raised (one more pass).
   Frames f = frames_of(chain, g.pitch);
-  Sums current = pass(pts, f, chain, g, params, threads);
+  std::vector<std::int16_t> assoc(pts.size());
+  Sums current = pass(pts, f, chain, g, params, threads, 1, {assoc.data(), false});
+  result.searches = 1;
+  Nodes searched_at = f.centre;  // the nodes where the points were last searched
   ++result.passes;
   // The prior's weight: a bend change of bend_sigma costs what a point at the Huber
   // threshold does.
@@ -381,8 +411,14 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
       break;
     }
     Frames tf = frames_of(trial, g.pitch);
-    Sums ts = pass(pts, tf, trial, g, params, threads);
+    double drift = 0;
+    for (std::size_t k = 0; k < after.size(); ++k)
+      drift = std::max(drift, (after[k] - searched_at[k]).norm());
+    const bool reuse = drift <= params.reassociate;
+    Sums ts = pass(pts, tf, trial, g, params, threads, 1, {assoc.data(), reuse});
+    if (!reuse) searched_at = after;
     ++result.passes;
+    result.searches += !reuse;
     const double trial_cost =
         ts.robust + (shape ? shape_prior(trial, tf, *shape, prior_weight, nullptr, nullptr) : 0.0);
     if (trial_cost <= current_cost) {

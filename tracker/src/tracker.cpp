@@ -157,12 +157,13 @@ FrameResult Tracker::step(const Cloud& cloud) {
   }
 
   if (s.update->fits_frame()) {
-    if (s.update->fit_frame(view, initialized_now, *s.init, s.nodes, s.acc.count)) {
+    const FrameFit fit = s.update->fit_frame(view, initialized_now, *s.init, s.nodes, s.acc.count);
+    if (fit.reinit) {
       r.reinit = true;
       r.init_reason = InitReason::misfit;
     }
     s.has_association = false;
-    r.iterations = 1;
+    r.iterations = fit.passes;
     return finish(r, t0);
   }
 
@@ -207,9 +208,9 @@ FrameResult& Tracker::finish(FrameResult& r, std::chrono::steady_clock::time_poi
   return r;
 }
 
-bool UpdatePolicy::fit_frame(const PointsView& /*points*/, bool /*restarted*/,
-                             const InitPolicy& /*init*/, Nodes& /*nodes*/,
-                             std::vector<std::int64_t>& /*counts*/) {
+FrameFit UpdatePolicy::fit_frame(const PointsView& /*points*/, bool /*restarted*/,
+                                 const InitPolicy& /*init*/, Nodes& /*nodes*/,
+                                 std::vector<std::int64_t>& /*counts*/) {
   throw std::logic_error("UpdatePolicy::fit_frame: this policy updates per iteration");
 }
 

@@ -18,6 +18,8 @@ namespace {
 
 // The prediction's screen uses every kScreenStride-th point.
 constexpr std::size_t kScreenStride = 8;
+// slide_to_best's passes (its candidate shifts).
+constexpr int kSlideSteps = kSlideCandidates;
 
 class UpdateChainFit final : public UpdatePolicy {
  public:
@@ -36,8 +38,9 @@ class UpdateChainFit final : public UpdatePolicy {
 
   [[nodiscard]] bool fits_frame() const override { return true; }
 
-  bool fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
-                 Nodes& nodes, std::vector<std::int64_t>& counts) override {
+  FrameFit fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
+                     Nodes& nodes, std::vector<std::int64_t>& counts) override {
+    passes_ = 0;
     if (restarted) {
       last_.reset();
       before_.reset();
@@ -66,7 +69,7 @@ class UpdateChainFit final : public UpdatePolicy {
     // no ball under it and counts none.
     counts.assign(nodes.size(), 0);
     std::copy(fit.result.counts.begin(), fit.result.counts.end(), counts.begin());
-    return reinit;
+    return {reinit, passes_};
   }
 
  private:
@@ -77,11 +80,12 @@ class UpdateChainFit final : public UpdatePolicy {
 
   // The fit from `start`: after an initialization, slid along itself into the fit's reach
   // first; else holding the start's shape (the last fit's, moved with the link).
-  Fit fit_from(const PointsView& points, const Nodes& start, bool fresh) const {
+  Fit fit_from(const PointsView& points, const Nodes& start, bool fresh) {
     Fit f{chain_from_nodes(start, geometry_), {}};
     if (!fresh) {
       const ChainState shape = f.chain;
       f.result = fit_chain(points, f.chain, geometry_, params_, threads_, &shape);
+      passes_ += f.result.passes;
       return f;
     }
     f.chain = slide_to_best(points, f.chain, geometry_, params_, threads_);
@@ -92,6 +96,7 @@ class UpdateChainFit final : public UpdatePolicy {
     ChainFitParams loose = params_;
     loose.bend_sigma = params_.straight_sigma;
     f.result = fit_chain(points, f.chain, geometry_, loose, threads_, &straight);
+    passes_ += f.result.passes + kSlideSteps;
     return f;
   }
 
@@ -100,7 +105,7 @@ class UpdateChainFit final : public UpdatePolicy {
   // from one on its largest connected cluster: whichever explains all the points better.
   // Clusters alone would not do: a link that hides part of itself falls apart into them.
   Fit fresh_fit(const PointsView& points, const Nodes& start, const InitPolicy& init,
-                const Nodes* previous) const {
+                const Nodes* previous) {
     Fit best = fit_from(points, start, true);
     // Cells of a neck radius: gaps under one cell are always bridged, and clutter 2√3
     // cells (24 mm) or more from the link never joins it.
@@ -124,7 +129,7 @@ class UpdateChainFit final : public UpdatePolicy {
   // where a per-node velocity would keep turning it on its own. A still link's fits differ
   // by their noise, which a rigid move extrapolates to millimetres at the tip: the points
   // (every kScreenStride-th) choose between the moved start and the last fit.
-  Nodes predicted(const PointsView& points, const Nodes& nodes) const {
+  Nodes predicted(const PointsView& points, const Nodes& nodes) {
     if (!last_ || !before_) return nodes;
     Eigen::Matrix3Xd from(3, nodes.size()), to(3, nodes.size());
     for (std::size_t j = 0; j < nodes.size(); ++j) {
@@ -140,6 +145,7 @@ class UpdateChainFit final : public UpdatePolicy {
     const double moving =
         chain_cost(points, chain_from_nodes(moved, geometry_), geometry_, params_, threads_,
                    kScreenStride);
+    passes_ += 2;  // each 1/kScreenStride of one, counted whole
     return moving < still ? moved : nodes;
   }
 
@@ -156,6 +162,7 @@ class UpdateChainFit final : public UpdatePolicy {
   int threads_;
   std::optional<Nodes> last_, before_;  // the last two frames' fits, for the velocity
   std::size_t last_inliers_ = 0;        // the last fit's inliers, for the loss test
+  int passes_ = 0;                      // this frame's passes over the points
 };
 
 }  // namespace

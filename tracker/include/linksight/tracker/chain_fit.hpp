@@ -25,6 +25,10 @@ struct ChainFitParams {
   /// Stop after a step that moves no centre more than this [m] (0.01 mm: 5x below the
   /// noise-free accuracy target; each further step is a pass over every point).
   double tolerance = 1e-5;
+  /// A step that leaves every centre within this of where the points were last searched
+  /// for their nearest component reuses that search (a pass then costs one component's
+  /// distance per point); 0: search on every pass [m].
+  double reassociate = 0.0005;
   /// With a shape prior: how far a joint's bend may change from the prior's, as one σ
   /// (the link holds its shape unless pushed; a hidden joint keeps its bend) [rad].
   double bend_sigma = 0.3 * 3.14159265358979323846 / 180.0;
@@ -49,6 +53,7 @@ struct ChainFitParams {
     ar("huber_m", huber, fields::in(1e-6, 0.1));
     ar("max_distance_m", max_distance, fields::in(1e-4, 1));
     ar("tolerance_m", tolerance, fields::in(0, 1e-3));
+    ar("reassociate_m", reassociate, fields::in(0, 0.01));
     ar("bend_sigma_deg", bend_sigma, fields::deg(fields::in(0.01, 90)));
     ar("straight_sigma_deg", straight_sigma, fields::deg(fields::in(0.01, 90)));
     ar("misfit_inliers", misfit_inliers, fields::in(0, 1));
@@ -62,6 +67,7 @@ struct ChainFitParams {
 struct ChainFitResult {
   int iterations = 0;       ///< accepted Levenberg-Marquardt steps
   int passes = 0;           ///< passes over the points (one per step tried, plus the first)
+  int searches = 0;         ///< of them, passes that searched every point's component
   std::size_t inliers = 0;  ///< points within max_distance of the fitted chain's surface
   double rms = 0.0;         ///< RMS distance of the inliers to the surface [m]
   double cost = 0.0;        ///< robust cost of the points (without the shape prior)
@@ -96,6 +102,9 @@ ChainFitResult fit_chain(const PointsView& points, ChainState& chain,
 [[nodiscard]] double chain_cost(const PointsView& points, const ChainState& chain,
                                 const ComponentGeometry& geometry, const ChainFitParams& params,
                                 int threads = 1, std::size_t stride = 1);
+
+/// slide_to_best's candidate shifts: one pass over the points each.
+inline constexpr int kSlideCandidates = 8;
 
 /// `start` slid along itself by the shift in [-pitch/2, pitch/2) (steps of pitch/8) whose
 /// points fit best (robust cost, one pass each). A start laid out from the cloud's extent

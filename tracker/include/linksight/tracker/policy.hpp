@@ -30,6 +30,12 @@ class InitPolicy {
                                    const Nodes* previous) const = 0;
 };
 
+/// What a whole-frame fit (UpdatePolicy::fit_frame) did.
+struct FrameFit {
+  bool reinit = false;  ///< the output came from a re-initialization
+  int passes = 0;       ///< passes over the frame's points
+};
+
 /// One iteration: new nodes from the association the back end has just made (`acc`; the
 /// per-point association is `backend.association()`, read back only when asked).
 /// Returns the largest node move [m], for TrackerParams::tolerance.
@@ -44,10 +50,9 @@ class UpdatePolicy {
   /// The frame's nodes from the previous frame's (`nodes`, updated in place), or from an
   /// initialization's when `restarted` (first frame, re-initialization: nothing earlier
   /// frames said holds). `counts`: the points each node accounts for (nodes.size()).
-  /// The policy may re-initialize from `init` on its own evidence: returns whether the
-  /// output came from a re-initialization.
-  virtual bool fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
-                         Nodes& nodes, std::vector<std::int64_t>& counts);
+  /// The policy may re-initialize from `init` on its own evidence.
+  virtual FrameFit fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
+                             Nodes& nodes, std::vector<std::int64_t>& counts);
 };
 
 /// After an association (not in the frame that just initialized): the node whose

@@ -77,7 +77,7 @@ enum class LostReason : std::uint8_t {
 struct FrameResult {
   Nodes nodes;                       ///< M+1 reference vectors, camera frame [m], as the mode's output policy gives them
   std::vector<std::int64_t> counts;  ///< |N_j| of the last iteration
-  int iterations = 0;                ///< iterations run
+  int iterations = 0;                ///< iterations run (chain-fit: passes over the points)
   bool reinit = false;               ///< LSQ re-initialization fired (Sec. IV.C)
   InitReason init_reason = InitReason::none;
   int reinit_node = -1;  ///< first node found with an empty neighbourhood
