@@ -25,7 +25,7 @@ namespace {
 struct TrackOptions {
   std::string input;
   std::string intrinsics;
-  std::string mode = "paper";
+  std::string mode = "chain-fit";
   std::string init = "pca";
   std::string som_init = "straight-line";
   std::string backend = "serial";

@@ -106,9 +106,16 @@ inline std::unique_ptr<Backend> make(const BackendCase& c) {
   o.accumulation = c.accumulation;
   return make_backend(c.kind, 2, o);
 }
-/// Tracker parameters selecting this case (OpenMP with 2 threads).
-inline TrackerParams params_for(const BackendCase& c) {
+/// Paper mode's parameters: the tests of the SOM association and its back ends name the
+/// paper's tracker (the default mode is chain-fit since issue 17).
+inline TrackerParams paper_params() {
   TrackerParams p;
+  p.mode = parse_mode("paper");
+  return p;
+}
+/// Paper mode's parameters selecting this case (OpenMP with 2 threads).
+inline TrackerParams params_for(const BackendCase& c) {
+  TrackerParams p = paper_params();
   p.backend = c.kind;
   p.threads = 2;
   p.opencl.accumulation = c.accumulation;

@@ -163,8 +163,9 @@ TEST_F(Cli, TracksASynthSequenceAndWritesTheDocumentedColumns) {
   // The settings echo: TrackerParams' field list (a scene's tracker keys), then the rest.
   std::ifstream js(out / "summary.json");
   const nlohmann::json params = nlohmann::json::parse(js)["params"];
-  EXPECT_EQ(params["mode"], "paper");
+  EXPECT_EQ(params["mode"], "chain-fit");  // the default (issue 17)
   EXPECT_EQ(params["init"], "pca");
+  EXPECT_EQ(params["chain_fit"]["bend_sigma_deg"], 0.3);
   EXPECT_EQ(params["backend"], "openmp");
   EXPECT_EQ(params["threads"], 2);
   EXPECT_EQ(params["iterations"], 4);

@@ -104,7 +104,7 @@ TEST_P(BackendEquivalence, TinyAndHugeClouds) {
 }
 
 TEST_P(BackendEquivalence, TrackerSequenceMatchesSerialOn20kPoints) {
-  TrackerParams p;
+  TrackerParams p = test::paper_params();
   Tracker ref(p);
   Tracker other(test::params_for(GetParam()));
   for (int f = 0; f < 5; ++f) {
@@ -129,7 +129,7 @@ TEST_P(BackendEquivalence, TrackerSequenceMatchesSerialOn20kPoints) {
 TEST_P(BackendEquivalence, BitIdenticalTrackingOnEveryTestCloud) {
   for (sim::ChainShape shape :
        {sim::ChainShape::straight, sim::ChainShape::c_shape, sim::ChainShape::s_shape}) {
-    Tracker ref(TrackerParams{});
+    Tracker ref(test::paper_params());
     Tracker other(test::params_for(GetParam()));
     const Nodes truth = test::test_chain(shape);
     for (int f = 0; f < 12; ++f) {

@@ -27,7 +27,7 @@ TEST(ModeTable, NamesAreUniqueAndRoundTrip) {
   }
   EXPECT_EQ(names.size(), mode_table().size());
   EXPECT_EQ(mode_names().size(), mode_table().size());
-  EXPECT_EQ(to_string(TrackerMode{}), "paper");  // the default
+  EXPECT_EQ(to_string(TrackerMode{}), "chain-fit");  // the default (issue 17)
   EXPECT_THROW((void)TrackerMode::at(mode_table().size()), std::out_of_range);
 }
 
@@ -35,7 +35,7 @@ TEST(ModeTable, ErrorAndChoicesListEveryMode) {
   // Built from the table, so a new row needs no change here.
   EXPECT_EQ(test::error_of<std::invalid_argument>([] { (void)parse_mode("centred"); }),
             "unknown mode 'centred' (expected " + test::expected_modes() + ")");
-  EXPECT_EQ(test::expected_modes().rfind("paper, accelerated-som", 0), 0u);
+  EXPECT_EQ(test::expected_modes().rfind("chain-fit, paper, accelerated-som", 0), 0u);
   std::string choices;
   for (const std::string& name : mode_names()) choices += (choices.empty() ? "" : " | ") + name;
   EXPECT_EQ(mode_choices(), choices);

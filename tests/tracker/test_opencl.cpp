@@ -76,10 +76,10 @@ TEST(OpenCL, BitIdenticalForAnyWorkGroupSize) {
 
 TEST(OpenCL, TwoTrackersAliveAtOnce) {
   LINKSIGHT_SKIP_IF_UNBUILT(test::BackendCase{BackendKind::opencl});
-  TrackerParams p;
+  TrackerParams p = test::paper_params();
   p.backend = BackendKind::opencl;
   Tracker a(p), b(p);
-  Tracker ref(TrackerParams{});
+  Tracker ref(test::paper_params());
   for (int f = 0; f < 3; ++f) {
     const Cloud ca = cloud(10 + f), cb = cloud(20 + f, 1500);
     const FrameResult ra = a.step(ca), rb = b.step(cb);

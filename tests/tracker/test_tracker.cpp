@@ -124,7 +124,7 @@ INSTANTIATE_TEST_SUITE_P(BackendsAndShapes, TrackerShapes,
 TEST(Tracker, PaperInitConvergesOnBroadsideShapes) {
   for (ChainShape shape : {ChainShape::straight, ChainShape::c_shape, ChainShape::s_shape}) {
     const Nodes truth = test::test_chain(shape, 0.1);
-    TrackerParams p;
+    TrackerParams p = test::paper_params();
     p.nodes = 11;
     p.policy.lsq_init.method = InitMethod::paper;
     Tracker tracker(p);
@@ -145,7 +145,7 @@ TEST(Tracker, PaperInitFailsWhereTheLinkRunsAlongCameraYAndPcaDoesNot) {
   for (std::size_t c = 0; c < cases.size(); ++c) {
     const Nodes& truth = cases[c];
     for (InitMethod init : {InitMethod::paper, InitMethod::pca}) {
-      TrackerParams p;
+      TrackerParams p = test::paper_params();
       p.nodes = 11;
       p.policy.lsq_init.method = init;
       Tracker tracker(p);

@@ -10,6 +10,11 @@ namespace {
 // A new mode is a row here (and, if it needs a part that does not exist yet, one file
 // under policy/). The first row is the default mode.
 constexpr ModeSpec kModes[] = {
+    {"chain-fit",
+     "the chain itself (ours, issue 17): the ball centres fitted to the points by their "
+     "distance to the component surfaces, every pitch exact, the shape held where nothing "
+     "is seen, a constant-velocity start, re-initialization when the fit loses the points",
+     kInitLsqCentred, kUpdateChainFit, kReinitNever, kOutputCentres},
     {"paper",
      "the paper's tracker: LSQ init, SOM mean, LSQ re-initialization when a node's "
      "neighbourhood is empty (Sec. IV)",
@@ -22,11 +27,6 @@ constexpr ModeSpec kModes[] = {
      "paper, then each output node moved 2/3 r further from the camera along its viewing "
      "ray, from the seen surface to the ball centre (not in the paper)",
      kInitLsq, kUpdateSomMean, kReinitEmptyNeighbourhood, kOutputCentreOffset},
-    {"chain-fit",
-     "the chain itself: LSQ init moved to the centres, then the ball centres fitted to the points by their distance "
-     "to the component surfaces, every pitch exact (issue 17; a first version: no "
-     "re-initialization, free-space reasoning or prediction yet)",
-     kInitLsqCentred, kUpdateChainFit, kReinitNever, kOutputCentres},
 };
 static_assert(std::size(kModes) < 256, "TrackerMode holds an 8-bit index");
 

@@ -218,7 +218,7 @@ TEST_F(Overrides, SetReachesScalarsNestedKeysListsAndVectors) {
   // The file alone is unchanged.
   const Scene plain = load_scene(kScenes / "occluder_pass.yaml");
   EXPECT_EQ(plain.camera.fps, 30);
-  EXPECT_EQ(plain.tracker.mode, parse_mode("paper"));
+  EXPECT_EQ(plain.tracker.mode, parse_mode("chain-fit"));  // the default (issue 17)
   // A key the file does not have is created.
   EXPECT_EQ(load_scene(kScenes / "static.yaml", {"segmentation.leakage=0.3"}).segmentation.leakage,
             0.3);
@@ -249,7 +249,7 @@ TEST_F(Overrides, BadOverridesNameTheSetAndTheKey) {
   e = error_of(scene, {"camera.fsp=30"});
   EXPECT_TRUE(has(e, "--set camera.fsp=30: camera.fsp: unknown key")) << e;
   e = error_of(scene, {"tracker.mode=fastest"});
-  EXPECT_TRUE(has(e, "--set tracker.mode=fastest: tracker.mode: unknown mode 'fastest' (expected paper, ")) << e;
+  EXPECT_TRUE(has(e, "--set tracker.mode=fastest: tracker.mode: unknown mode 'fastest' (expected chain-fit, paper, ")) << e;
   e = error_of(scene, {"occluders[0].reflectance=1"});
   EXPECT_TRUE(has(e, "no element 0")) << e;
   e = error_of(scene, {"camera.fps"});

@@ -27,7 +27,7 @@ struct ModeSpec {
 /// Every mode, in table order (the first is the default).
 [[nodiscard]] std::span<const ModeSpec> mode_table();
 
-/// A mode: a row of mode_table(). The default is the table's first row (`paper`).
+/// A mode: a row of mode_table(). The default is the table's first row (`chain-fit`).
 class TrackerMode {
  public:
   constexpr TrackerMode() = default;
@@ -45,7 +45,7 @@ class TrackerMode {
 [[nodiscard]] std::vector<TrackerMode> all_modes();
 /// Every mode's name, in table order.
 [[nodiscard]] std::vector<std::string> mode_names();
-/// "paper | accelerated-som | paper-centred", for help texts.
+/// "chain-fit | paper | accelerated-som | paper-centred", for help texts.
 [[nodiscard]] std::string mode_choices();
 [[nodiscard]] std::string_view to_string(TrackerMode mode);
 /// Throws std::invalid_argument naming the value and every mode.
