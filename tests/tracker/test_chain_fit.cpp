@@ -7,6 +7,7 @@
 
 #include "linksight/sim/synthetic_chain.hpp"
 #include "linksight/tracker/chain_fit.hpp"
+#include "linksight/tracker/tracker.hpp"
 #include "test_support.hpp"
 
 namespace linksight {
@@ -160,6 +161,101 @@ TEST(ChainFitRobust, NearestSurfaceAndBadInput) {
   ChainFitParams bad;
   bad.huber = 0;
   EXPECT_THROW((void)fit_chain(none.view(), wrong, g, bad), fields::FieldError);
+}
+
+// ---- the chain-fit mode over frames (update_chain_fit.cpp) ----
+
+// The test link moved rigidly: translated by `shift` [m] along x and turned by `turn`
+// [rad] about the camera's y axis through its base.
+Nodes moved(const Nodes& nodes, double shift, double turn) {
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(turn, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  Nodes out;
+  for (const Eigen::Vector3d& q : nodes)
+    out.push_back(nodes[0] + R * (q - nodes[0]) + Eigen::Vector3d(shift, 0, 0));
+  return out;
+}
+
+Tracker chain_fit_tracker() {
+  TrackerParams p;
+  p.mode = parse_mode("chain-fit");
+  return Tracker(p);
+}
+
+// Issue 17, part 3: a part hidden by something in front of it (here its points are simply
+// gone) is carried by the chain and its last shape: while the visible half moves (3 mm
+// and 0.4 deg per frame) the hidden half moves rigidly with it, and while the link is
+// still the hidden half keeps its place.
+TEST(ChainFitMode, HiddenPartMovesRigidlyWithWhatIsSeen) {
+  // Measured: hidden nodes at most 1.11 mm off while the link moves (the tip node, 0.27 m
+  // from the last seen ball, at frame 7) and at most 0.49 mm once it has stood for two
+  // frames; issue 17's target for a moving link with a board over it is 10 mm.
+  constexpr double kCarriedBand = 2.0e-3;  // [m]: hidden nodes while the link moves
+  constexpr double kHeldBand = 1.0e-3;     // [m]: hidden nodes once it stands
+  const ComponentGeometry g;
+  const Nodes rest = test::test_chain(sim::ChainShape::c_shape);
+  Tracker tracker = chain_fit_tracker();
+  sim::SurfaceSampling s;
+  s.noise_sigma = 0.4e-3;
+  for (int f = 0; f < 16; ++f) {
+    const int moving = std::min(f, 10);  // moves for 10 frames, then stands
+    const Nodes truth = moved(rest, 0.003 * moving, 0.007 * moving);
+    s.seed = static_cast<std::uint64_t>(20 + f);
+    s.hidden = f < 3 ? std::vector<int>{} : std::vector<int>{6, 7, 8, 9, 10};
+    const FrameResult r = tracker.step(sim::sample_visible_surface(truth, g, s));
+    SCOPED_TRACE("frame " + std::to_string(f));
+    for (std::size_t k = 0; k + 1 < r.nodes.size(); ++k)
+      EXPECT_NEAR((r.nodes[k + 1] - r.nodes[k]).norm(), g.pitch, 1e-6);
+    for (std::size_t k = 6; k < truth.size(); ++k)
+      EXPECT_LT((r.nodes[k] - truth[k]).norm(), f > 12 ? kHeldBand : kCarriedBand)
+          << "hidden node " << k;
+    for (std::size_t k = 0; k < 6; ++k)
+      EXPECT_LT((r.nodes[k] - truth[k]).norm(), kNoisyMeanBand) << "seen node " << k;
+  }
+}
+
+// Stray points: a hand touching ball 5 (a dense patch on a 40 mm sphere whose surface
+// meets the ball's), a mug 5 cm behind the link, and flying pixels trailing from the
+// silhouette toward a background 0.3 m behind; none pulls a centre by more than 0.5 mm
+// from where the clean cloud puts it.
+TEST(ChainFitMode, AHandAMugAndFlyingPixelsPullNoCentre) {
+  constexpr double kPullBand = 0.5e-3;  // [m]: issue 17
+  const ComponentGeometry g;
+  const Nodes truth = test::test_chain(sim::ChainShape::s_shape);
+  std::mt19937_64 rng(17);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const auto on_sphere = [&](const Eigen::Vector3d& c, double r) {
+    Eigen::Vector3d d(n01(rng), n01(rng), n01(rng));
+    return Eigen::Vector3d(c + r * d.normalized());
+  };
+  Tracker clean = chain_fit_tracker(), cluttered = chain_fit_tracker();
+  for (int f = 0; f < 4; ++f) {
+    sim::SurfaceSampling s;
+    s.noise_sigma = 0.4e-3;
+    s.seed = static_cast<std::uint64_t>(40 + f);
+    const Cloud link = sim::sample_visible_surface(truth, g, s);
+    Cloud dirty = link;
+    // The hand: its near side (toward the camera), touching ball 5 from above.
+    const Eigen::Vector3d up(0, -1, 0);
+    const Eigen::Vector3d hand = truth[5] + (g.ball_radius + 0.040) * up;
+    for (int i = 0; i < 600; ++i) {
+      const Eigen::Vector3d q = on_sphere(hand, 0.040);
+      if ((q - hand).dot(hand) < 0) dirty.push_back(q);  // the half facing the camera
+    }
+    // The mug: a cylinder's front, 5 cm behind ball 3.
+    for (int i = 0; i < 400; ++i) {
+      const double a = M_PI * u01(rng), h = 0.08 * u01(rng);
+      dirty.push_back(truth[3] + Eigen::Vector3d(0.04 * std::cos(a), -h, 0.05 - 0.04 * std::sin(a)));
+    }
+    // Flying pixels: 5% of the link's points slid back along their rays by 2-300 mm.
+    for (std::size_t i = 0; i < link.size(); i += 20) {
+      const Eigen::Vector3d p = link.point(i);
+      dirty.push_back(p * (1.0 + (0.002 + 0.3 * u01(rng)) / p.norm()));
+    }
+    const FrameResult a = clean.step(link), b = cluttered.step(dirty);
+    for (std::size_t k = 0; k < a.nodes.size(); ++k)
+      EXPECT_LT((a.nodes[k] - b.nodes[k]).norm(), kPullBand) << "frame " << f << " node " << k;
+  }
 }
 
 }  // namespace

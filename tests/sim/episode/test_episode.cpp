@@ -275,5 +275,47 @@ TEST_F(Overrides, TrackerKeysInAFileNameTheirLine) {
   EXPECT_EQ(s.tracker.nodes, s.chain.geometry.count + 1);
 }
 
+// Issue 17: the slip case of docs/robustness.md. A board over 5% of the tip of the moving
+// link, no noise: paper mode's LSQ re-initialization lays the nodes out along what is seen
+// and slips by one component (its known failure, kept visible here); chain-fit keeps
+// every node on its own ball, holds within kChainFitWorstBand while the board is there
+// and is back within 1 mm of its error before it within 3 frames after it leaves.
+TEST(Episode, ChainFitDoesNotSlipUnderATipBoard) {
+  constexpr double kChainFitWorstBand = 0.005;  // [m]: issue 17's still-link target
+  constexpr double kRecoveredMargin = 0.001;    // [m]
+  constexpr int kRecoverFrames = 3;
+  const Scene scene = load_scene(kScenes / "robustness_moving.yaml",
+                                 {"occlusion.at=tip", "occlusion.fraction=0.05",
+                                  "noise.scale=0"});
+  EpisodeOptions o;
+  o.modes = {parse_mode("chain-fit"), parse_mode("paper")};
+  Episode e(scene, o);
+  int misassigned[2] = {0, 0};
+  double worst = 0, before = 0;
+  int before_frames = 0, board_frames = 0, end_frame = -1, recover = -1;
+  while (e.done() < e.frames()) {
+    const EpisodeFrame& f = e.step();
+    for (int k = 0; k < 2; ++k) misassigned[k] += f.scores[k].misassigned;
+    const double err = f.scores[0].mean_err;
+    if (f.t < scene.occlusion.from_s - 1e-9) {
+      before += err;
+      ++before_frames;
+    } else if (f.t < scene.occlusion.to_s - 1e-9) {
+      worst = std::max(worst, err);
+      board_frames += f.image->link_occluded_fraction > 0;
+    } else {
+      if (end_frame < 0) end_frame = f.frame;
+      if (recover < 0 && err <= before / before_frames + kRecoveredMargin)
+        recover = f.frame - end_frame;
+    }
+  }
+  ASSERT_GT(board_frames, 10);  // the board did hide part of the link
+  EXPECT_EQ(misassigned[0], 0) << "chain-fit slipped";
+  EXPECT_LT(worst, kChainFitWorstBand);
+  EXPECT_GE(recover, 0);
+  EXPECT_LE(recover, kRecoverFrames);
+  EXPECT_GT(misassigned[1], 0) << "paper mode no longer slips here: docs/robustness.md is stale";
+}
+
 }  // namespace
 }  // namespace linksight::sim
