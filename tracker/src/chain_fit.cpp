@@ -210,9 +210,9 @@ void accumulate(const PointsView& pts, std::size_t begin, std::size_t end, std::
 
 // Points are summed in fixed blocks, each block in order and the blocks in order, so the
 // sums are the same bits for any thread count (serial is one thread of the same code).
-constexpr std::size_t kBlock = 4096;
+constexpr std::size_t kBlock = 2048;
 
-// Every `stride`-th point (block starts are multiples of it).
+// Every `stride`-th point of each block, from the block's first.
 Sums pass(const PointsView& pts, const Frames& f, const ChainState& chain,
           const ComponentGeometry& g, const ChainFitParams& params, int threads,
           std::size_t stride = 1, Association a = {}) {
@@ -334,12 +334,19 @@ ChainState slide_to_best(const PointsView& pts, const ChainState& start,
                          int threads) {
   params.validate();
   if (threads <= 0) threads = omp_get_num_procs();
+  if (start.axis.size() != static_cast<std::size_t>(g.count))
+    throw std::invalid_argument("slide_to_best: the chain has " +
+                                std::to_string(start.axis.size()) + " axes, the geometry " +
+                                std::to_string(g.count) + " components");
   const Nodes nodes = start.nodes(g.pitch);
   const std::size_t last = start.axis.size() - 1;
   ChainState best = start;
   double best_cost = std::numeric_limits<double>::infinity();
   constexpr int kSteps = kSlideCandidates;  // per pitch: the best start is within pitch/16
-  for (int i = -kSteps / 2; i < kSteps / 2; ++i) {
+  // Shifts 0, -1, +1, -2, ... (in pitch/kSteps): a tie (no point near any candidate)
+  // keeps the smallest move.
+  for (int c = 0; c < kSteps; ++c) {
+    const int i = (c % 2 == 0 ? 1 : -1) * ((c + 1) / 2);
     const double shift = g.pitch * i / kSteps;
     // Each node moves along the component it leads into (forward) or out of (backward):
     // on a gently bent chain, very nearly the chain slid along itself.
@@ -349,9 +356,10 @@ ChainState slide_to_best(const PointsView& pts, const ChainState& start,
       moved[j] += shift * start.axis[k];
     }
     const ChainState candidate = chain_from_nodes(moved, g);
-    const double c = pass(pts, frames_of(candidate, g.pitch), candidate, g, params, threads).robust;
-    if (c < best_cost) {
-      best_cost = c;
+    const double cost =
+        pass(pts, frames_of(candidate, g.pitch), candidate, g, params, threads).robust;
+    if (cost < best_cost) {
+      best_cost = cost;
       best = candidate;
     }
   }
@@ -380,7 +388,10 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   // One pass per iteration: it linearizes at the chain and gives the chain's cost; a
   // trial that costs more is dropped and the damping raised (one more pass).
   Frames f = frames_of(chain, g.pitch);
-  std::vector<std::int16_t> assoc(pts.size());
+  // The accepted chain's association, and a trial's own when it searches (kept only if
+  // the trial is accepted, so a rejected trial leaves the association it was priced
+  // against).
+  std::vector<std::int16_t> assoc(pts.size()), trial_assoc(pts.size());
   Sums current = pass(pts, f, chain, g, params, threads, 1, {assoc.data(), false});
   result.searches = 1;
   Nodes searched_at = f.centre;  // the nodes where the points were last searched
@@ -415,8 +426,8 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
     for (std::size_t k = 0; k < after.size(); ++k)
       drift = std::max(drift, (after[k] - searched_at[k]).norm());
     const bool reuse = drift <= params.reassociate;
-    Sums ts = pass(pts, tf, trial, g, params, threads, 1, {assoc.data(), reuse});
-    if (!reuse) searched_at = after;
+    Sums ts = pass(pts, tf, trial, g, params, threads, 1,
+                   reuse ? Association{assoc.data(), true} : Association{trial_assoc.data(), false});
     ++result.passes;
     result.searches += !reuse;
     const double trial_cost =
@@ -427,7 +438,11 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
       current = std::move(ts);
       current_cost = normal_equations(current, chain, f);
       lambda = std::max(lambda / 10, 1e-9);
-      result.iterations = it + 1;
+      ++result.iterations;
+      if (!reuse) {
+        assoc.swap(trial_assoc);
+        searched_at = after;
+      }
     } else {
       lambda *= 10;
       if (lambda > 1e8) break;  // no damped step lowers the cost

@@ -275,7 +275,7 @@ Nodes som_init(const PointsView& points, int n_nodes, SomInit method, std::uint6
 }
 
 std::vector<std::size_t> largest_cluster(const PointsView& points, double cell) {
-  if (!(cell > 0)) throw std::invalid_argument("largest_cluster: cell must be > 0 m");
+  if (!(cell >= 1e-4)) throw std::invalid_argument("largest_cluster: cell must be >= 1e-4 m");
   const std::size_t n = points.size();
   // Cells keyed by their integer coordinates (points are within kMaxCoordinate, so 21
   // bits each hold any cell of 1 mm or more), numbered in order of first appearance.
@@ -286,7 +286,13 @@ std::vector<std::size_t> largest_cluster(const PointsView& points, double cell) 
   std::unordered_map<std::int64_t, std::size_t> cell_of;
   std::vector<std::array<std::int64_t, 3>> coords;
   std::vector<std::size_t> point_cell(n);
+  // Within 21 bits each: |coordinate| / cell below 2^20 (100 m at 0.1 mm).
+  const double limit = static_cast<double>(std::int64_t{1} << 20) * cell;
   for (std::size_t p = 0; p < n; ++p) {
+    if (!(std::abs(points.x[p]) < limit && std::abs(points.y[p]) < limit &&
+          std::abs(points.z[p]) < limit))
+      throw std::invalid_argument("largest_cluster: point " + std::to_string(p) +
+                                  " is not finite or beyond " + std::to_string(limit) + " m");
     const std::array<std::int64_t, 3> c{static_cast<std::int64_t>(std::floor(points.x[p] / cell)),
                                         static_cast<std::int64_t>(std::floor(points.y[p] / cell)),
                                         static_cast<std::int64_t>(std::floor(points.z[p] / cell))};

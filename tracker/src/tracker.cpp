@@ -148,7 +148,6 @@ FrameResult Tracker::step(const Cloud& cloud) {
   }
 
   const PointsView view{{s.x.data(), n}, {s.y.data(), n}, {s.z.data(), n}};
-  s.backend->set_points(view);  // one upload per frame
   bool initialized_now = false;
   if (!s.has_previous) {
     s.nodes = s.init->init(view, m, nullptr);
@@ -166,6 +165,8 @@ FrameResult Tracker::step(const Cloud& cloud) {
     r.iterations = fit.passes;
     return finish(r, t0);
   }
+
+  s.backend->set_points(view);  // one upload per frame (a whole-frame fit needs none)
 
   // Algorithm 1, lines 8-21. A re-initialization restarts the iteration count once, so
   // the output is always SOM-refined; a second empty neighbourhood in the same frame

@@ -22,13 +22,14 @@ struct ChainFitParams {
   double huber = 0.001;
   /// A point farther than this from every component surface is not the link's [m].
   double max_distance = 0.01;
-  /// Stop after a step that moves no centre more than this [m] (0.01 mm: 5x below the
-  /// noise-free accuracy target; each further step is a pass over every point).
-  double tolerance = 1e-5;
+  /// Stop after a step that moves no centre more than this [m] (0.03 mm: the step is
+  /// taken, and what it leaves is about an eighth of it, well below the noise-free target
+  /// of 0.05 mm; each further step is a pass over every point).
+  double tolerance = 3e-5;
   /// A step that leaves every centre within this of where the points were last searched
   /// for their nearest component reuses that search (a pass then costs one component's
   /// distance per point); 0: search on every pass [m].
-  double reassociate = 0.0005;
+  double reassociate = 0.002;
   /// With a shape prior: how far a joint's bend may change from the prior's, as one σ
   /// (the link holds its shape unless pushed; a hidden joint keeps its bend) [rad].
   double bend_sigma = 0.3 * 3.14159265358979323846 / 180.0;
@@ -68,8 +69,12 @@ struct ChainFitResult {
   int iterations = 0;       ///< accepted Levenberg-Marquardt steps
   int passes = 0;           ///< passes over the points (one per step tried, plus the first)
   int searches = 0;         ///< of them, passes that searched every point's component
-  std::size_t inliers = 0;  ///< points within max_distance of the fitted chain's surface
-  double rms = 0.0;         ///< RMS distance of the inliers to the surface [m]
+  /// Points within max_distance of the fitted chain's surface, and their RMS distance to
+  /// it [m], from the last accepted pass: its association may be one reused from up to
+  /// reassociate away (so at most the true count and at least the true RMS), and the
+  /// final step within the tolerance, taken unchecked, is not in them.
+  std::size_t inliers = 0;
+  double rms = 0.0;
   double cost = 0.0;        ///< robust cost of the points (without the shape prior)
   std::vector<std::int64_t> counts;  ///< inliers nearest each component (count entries)
 };

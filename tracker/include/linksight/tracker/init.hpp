@@ -52,11 +52,12 @@ struct InitParams {
                              const Nodes* previous = nullptr);
 
 /// The indices (ascending) of the points in the largest connected cluster: two points
-/// are connected when their cells of a `cell`-sized grid touch (26-neighbourhood), so
-/// points closer than `cell` always are and points farther than 2√3 `cell` never are.
-/// For an initialization that should see the link and not clutter set apart from it
-/// (a mug behind, a table edge). Ties go to the cluster holding the lowest point index.
-/// Throws std::invalid_argument unless cell > 0.
+/// are linked when their cells of a `cell`-sized grid touch (26-neighbourhood), so points
+/// closer than `cell` always are and points farther than 2√3 `cell` never directly are;
+/// a cluster is what links connect. For an initialization that should see the link and
+/// not clutter set apart from it (a mug behind, a table edge). Ties go to the cluster
+/// holding the lowest point index. Throws std::invalid_argument when cell < 1e-4 m or a
+/// point is not finite or is 2^20 cells or more from the origin.
 [[nodiscard]] std::vector<std::size_t> largest_cluster(const PointsView& points, double cell);
 
 enum class SomInit {
