@@ -355,5 +355,140 @@ TEST(ChainFitMode, AJumpOutOfReachReinitializesOnMisfit) {
   EXPECT_EQ(r[3].init_reason, InitReason::none);
 }
 
+// Issue 17, part 4: a known base pose, 1 mm and 0.5° off (as a hand-eye calibration may
+// be). The link moves with its base half hidden (balls 0-5 show no points from frame 3
+// on): the pose and the shape hold the hidden half, each node within the band.
+TEST(ChainFitMode, ABasePoseHoldsTheChainWhenItsBaseEndIsHidden) {
+  // Measured: every node within 0.94 mm (the pose's own error is 1 mm); without the pose
+  // the shape alone holds it to 0.74 mm here (a rigid move the seen half shows).
+  constexpr double kWithBaseBand = 2.0e-3;  // [m]: issue 17's 3 mm target with a base prior
+  const ComponentGeometry g;
+  // The test link as test::test_chain lays it out, its base pose known.
+  Eigen::Isometry3d X_CB0 = Eigen::Isometry3d::Identity();
+  X_CB0.translation() = Eigen::Vector3d(-0.22, -0.02, 0.6);
+  X_CB0.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const std::vector<double> bends = sim::shape_bends(sim::ChainShape::c_shape, g.count, 0.15);
+  Eigen::Isometry3d error = Eigen::Isometry3d::Identity();
+  error.translation() = Eigen::Vector3d(0.0006, -0.0006, 0.0005);  // 1.0 mm
+  error.linear() = Eigen::AngleAxisd(0.5 * M_PI / 180, Eigen::Vector3d(1, 1, 0).normalized())
+                       .toRotationMatrix();
+  TrackerParams p;
+  p.mode = parse_mode("chain-fit");
+  Tracker with(p), without(p);
+  sim::SurfaceSampling s;
+  s.noise_sigma = 0.4e-3;
+  for (int f = 0; f < 16; ++f) {
+    const int moving = std::min(f, 10);
+    Eigen::Isometry3d X_CB = X_CB0;
+    X_CB.translation() += Eigen::Vector3d(0.003 * moving, 0, 0);
+    X_CB.linear() = Eigen::AngleAxisd(0.007 * moving, Eigen::Vector3d::UnitY()) * X_CB.linear();
+    const Nodes truth = sim::chain_nodes(g, bends, X_CB);
+    s.seed = static_cast<std::uint64_t>(80 + f);
+    s.hidden = f < 3 ? std::vector<int>{} : std::vector<int>{0, 1, 2, 3, 4, 5};
+    const Cloud cloud = sim::sample_visible_surface(truth, g, s);
+    const Eigen::Isometry3d prior = X_CB * error;
+    const FrameResult a = with.step(cloud, &prior);
+    SCOPED_TRACE("frame " + std::to_string(f));
+    for (std::size_t k = 0; k + 1 < a.nodes.size(); ++k)
+      EXPECT_NEAR((a.nodes[k + 1] - a.nodes[k]).norm(), g.pitch, 1e-6);
+    for (std::size_t k = 0; k < truth.size(); ++k)
+      EXPECT_LT((a.nodes[k] - truth[k]).norm(), kWithBaseBand) << "node " << k;
+  }
+}
+
+// The base anchors the components' indices (issue 17, part 3): a straight link whose base
+// half is hidden from the first frame on shows five components; from the points alone
+// they are some five of them (measured: every node three components off), with the base
+// pose they are balls 6-10.
+TEST(ChainFitMode, TheBaseAnchorsIndicesWhenTheBaseEndWasNeverSeen) {
+  const ComponentGeometry g;
+  const std::vector<double> straight(static_cast<std::size_t>(g.count - 1), 0.0);
+  Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
+  X_CB.translation() = Eigen::Vector3d(-0.25, 0.0, 0.6);
+  const Nodes truth = sim::chain_nodes(g, straight, X_CB);
+  sim::SurfaceSampling s;
+  s.noise_sigma = 0.4e-3;
+  s.hidden = {0, 1, 2, 3, 4, 5};
+  TrackerParams p;
+  p.mode = parse_mode("chain-fit");
+  Tracker with(p), without(p);
+  for (int f = 0; f < 3; ++f) {
+    s.seed = static_cast<std::uint64_t>(95 + f);
+    const Cloud cloud = sim::sample_visible_surface(truth, g, s);
+    const FrameResult a = with.step(cloud, &X_CB);
+    const FrameResult b = without.step(cloud);
+    SCOPED_TRACE("frame " + std::to_string(f));
+    EXPECT_LT(mean_error(a.nodes, truth), kNoisyMeanBand);
+    EXPECT_GT(mean_error(b.nodes, truth), g.pitch) << "the points alone did place it";
+  }
+}
+
+// With a base pose, ball 0 is the end at the base whichever way the cloud's extent would
+// order the chain: the same straight link, based at either end.
+TEST(ChainFitMode, TheBaseSaysWhichEndIsBallZero) {
+  const ComponentGeometry g;
+  const std::vector<double> straight(static_cast<std::size_t>(g.count - 1), 0.0);
+  for (const double turn : {0.0, M_PI}) {
+    SCOPED_TRACE("base turned by " + std::to_string(turn));
+    Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
+    X_CB.translation() = Eigen::Vector3d(turn == 0.0 ? -0.25 : 0.25, 0.0, 0.6);
+    X_CB.linear() = Eigen::AngleAxisd(turn, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const Nodes truth = sim::chain_nodes(g, straight, X_CB);
+    sim::SurfaceSampling s;
+    s.noise_sigma = 0.4e-3;
+    s.seed = 90;
+    TrackerParams p;
+    p.mode = parse_mode("chain-fit");
+    Tracker tracker(p);
+    const FrameResult r = tracker.step(sim::sample_visible_surface(truth, g, s), &X_CB);
+    EXPECT_LT(mean_error(r.nodes, truth), kNoisyMeanBand);
+    EXPECT_LT((r.nodes[0] - X_CB.translation()).norm(), 1e-3);
+  }
+}
+
+// A base pose that is not a finite rigid transform is refused; paper modes take a pose
+// and ignore it (their output is the same bits without one).
+TEST(ChainFitMode, ABasePoseMustBeRigidAndPaperModesIgnoreIt) {
+  const ComponentGeometry g;
+  const Nodes truth = test::test_chain(sim::ChainShape::c_shape);
+  sim::SurfaceSampling s;
+  s.seed = 91;
+  const Cloud cloud = sim::sample_visible_surface(truth, g, s);
+  Tracker tracker = chain_fit_tracker();
+  Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
+  scaled.linear() *= 1.01;
+  EXPECT_THROW((void)tracker.step(cloud, &scaled), std::invalid_argument);
+  Eigen::Isometry3d nan = Eigen::Isometry3d::Identity();
+  nan.translation().x() = std::nan("");
+  EXPECT_THROW((void)tracker.step(cloud, &nan), std::invalid_argument);
+  Eigen::Isometry3d mirrored = Eigen::Isometry3d::Identity();
+  mirrored.linear()(2, 2) = -1;
+  EXPECT_THROW((void)tracker.step(cloud, &mirrored), std::invalid_argument);
+  TrackerParams p = test::paper_params();
+  Tracker a(p), b(p);
+  const Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
+  EXPECT_EQ(a.step(cloud, &X_CB).nodes, b.step(cloud).nodes);
+}
+
+// fit_chain refuses an anchor it cannot weigh.
+TEST(ChainFit, AnAnchorNeedsAUnitAxisAndPositiveSigmas) {
+  const ComponentGeometry g;
+  const Nodes truth = test::test_chain(sim::ChainShape::c_shape);
+  const Cloud cloud = sim::sample_visible_surface(truth, g, {});
+  const test::Soa pts(cloud);
+  ChainState chain = chain_from_nodes(truth, g);
+  ChainAnchor a;
+  a.c0 = truth[0];
+  a.axis0 = chain.axis[0];
+  EXPECT_NO_THROW((void)fit_chain(pts.view(), chain, g, {}, 1, nullptr, &a));
+  ChainAnchor zero = a;
+  zero.sigma_m = 0;
+  EXPECT_THROW((void)fit_chain(pts.view(), chain, g, {}, 1, nullptr, &zero), std::invalid_argument);
+  ChainAnchor long_axis = a;
+  long_axis.axis0 *= 2;
+  EXPECT_THROW((void)fit_chain(pts.view(), chain, g, {}, 1, nullptr, &long_axis),
+               std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace linksight

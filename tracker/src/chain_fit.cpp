@@ -290,6 +290,27 @@ double shape_prior(const ChainState& chain, const Frames& f, const ChainState& s
   return cost;
 }
 
+// The anchor (a known base): ball 0's centre and component 0's axis held near where the
+// base puts them, each weighed so that one σ costs what a point at the Huber threshold
+// does. Adds its normal equations to H, b when given, and returns its cost.
+double anchor_prior(const ChainState& chain, const Frames& f, const ChainAnchor& anchor,
+                    double huber_m, Eigen::MatrixXd* H, Eigen::VectorXd* b) {
+  const double wp = std::pow(huber_m / anchor.sigma_m, 2);
+  const double wa = std::pow(huber_m / anchor.sigma_rad, 2);
+  const Eigen::Vector3d rp = chain.c0 - anchor.c0;
+  const Eigen::Vector3d ra = chain.axis[0] - anchor.axis0;
+  const double cost = 0.5 * wp * rp.squaredNorm() + 0.5 * wa * ra.squaredNorm();
+  if (H == nullptr) return cost;
+  H->topLeftCorner<3, 3>().diagonal().array() += wp;
+  b->head<3>().noalias() -= wp * rp;
+  // The step turns a_0 by T_0 dtheta_0 to first order, T_0 = [t1_0 t2_0].
+  Eigen::Matrix<double, 3, 2> J;
+  J << f.t1[0], f.t2[0];
+  H->block<2, 2>(3, 3).noalias() += wa * J.transpose() * J;
+  b->segment<2>(3).noalias() -= wa * J.transpose() * ra;
+  return cost;
+}
+
 ChainState stepped(const ChainState& chain, const Frames& f, const Eigen::VectorXd& dx) {
   ChainState out = chain;
   out.c0 += dx.head<3>();
@@ -368,7 +389,7 @@ ChainState slide_to_best(const PointsView& pts, const ChainState& start,
 
 ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
                          const ComponentGeometry& g, const ChainFitParams& params, int threads,
-                         const ChainState* shape) {
+                         const ChainState* shape, const ChainAnchor* anchor) {
   params.validate();
   g.validate();
   const int count = static_cast<int>(chain.axis.size());
@@ -380,6 +401,12 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
     throw std::invalid_argument("fit_chain: the shape prior has " +
                                 std::to_string(shape->axis.size()) + " axes, the chain " +
                                 std::to_string(count));
+  if (anchor != nullptr &&
+      !(anchor->c0.allFinite() && std::abs(anchor->axis0.norm() - 1) < 1e-6 &&
+        anchor->sigma_m > 0 && anchor->sigma_rad > 0 && std::isfinite(anchor->sigma_m) &&
+        std::isfinite(anchor->sigma_rad)))
+    throw std::invalid_argument(
+        "fit_chain: the anchor needs a finite c0, a unit axis0 and finite sigmas > 0");
   const Eigen::Index n = 3 + 2 * count;
   ChainFitResult result;
   double lambda = 1e-4;  // damping, relative to the diagonal (Levenberg-Marquardt)
@@ -400,9 +427,16 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   // threshold does.
   const double prior_weight =
       shape ? std::pow(params.huber / params.bend_sigma, 2) : 0.0;
+  // The priors' cost at `c`, and their normal equations added to H, b when asked.
+  const auto priors = [&](const ChainState& c, const Frames& fr, bool equations) {
+    Eigen::MatrixXd* h = equations ? &H : nullptr;
+    Eigen::VectorXd* v = equations ? &b : nullptr;
+    return (shape ? shape_prior(c, fr, *shape, prior_weight, h, v) : 0.0) +
+           (anchor ? anchor_prior(c, fr, *anchor, params.huber, h, v) : 0.0);
+  };
   const auto normal_equations = [&](const Sums& s, const ChainState& c, const Frames& fr) {
     assemble(s, fr, g.pitch, H, b);
-    return s.robust + (shape ? shape_prior(c, fr, *shape, prior_weight, &H, &b) : 0.0);
+    return s.robust + priors(c, fr, true);
   };
   double current_cost = normal_equations(current, chain, f);
   for (int it = 0; it < params.max_iterations; ++it) {
@@ -430,8 +464,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
                    reuse ? Association{assoc.data(), true} : Association{trial_assoc.data(), false});
     ++result.passes;
     result.searches += !reuse;
-    const double trial_cost =
-        ts.robust + (shape ? shape_prior(trial, tf, *shape, prior_weight, nullptr, nullptr) : 0.0);
+    const double trial_cost = ts.robust + priors(trial, tf, false);
     if (trial_cost <= current_cost) {
       chain = std::move(trial);
       f = std::move(tf);
@@ -451,6 +484,9 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   result.inliers = current.inliers;
   result.rms = current.inliers ? std::sqrt(current.sum2 / static_cast<double>(current.inliers)) : 0.0;
   result.cost = current.robust;
+  result.anchor_cost = anchor ? anchor_prior(chain, frames_of(chain, g.pitch), *anchor,
+                                             params.huber, nullptr, nullptr)
+                              : 0.0;
   result.counts = std::move(current.count);
   return result;
 }

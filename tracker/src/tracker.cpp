@@ -14,6 +14,7 @@ void TrackerParams::validate() const {
   if (nodes < 2 || nodes > kMaxNodes)
     fields::fail("tracker", "nodes", nodes, "must be in [2, " + std::to_string(kMaxNodes) + "]");
   policy.validate();
+  base_prior.validate();
   geometry.validate();
   opencl.validate();
 }
@@ -46,6 +47,8 @@ std::string_view to_string(LostReason r) {
   }
   return "unknown";
 }
+
+void BasePriorParams::validate() const { fields::check(*this, "base_prior"); }
 
 void PolicyParams::validate() const {
   lsq_init.validate();
@@ -94,7 +97,13 @@ std::span<const std::int32_t> Tracker::last_association() const {
   return state_->backend->association();
 }
 
-FrameResult Tracker::step(const Cloud& cloud) {
+FrameResult Tracker::step(const Cloud& cloud, const Eigen::Isometry3d* X_CB) {
+  if (X_CB != nullptr) {
+    const Eigen::Matrix3d R = X_CB->linear();
+    if (!X_CB->matrix().allFinite() ||
+        !(R.transpose() * R - Eigen::Matrix3d::Identity()).isZero(1e-6) || R.determinant() < 0)
+      throw std::invalid_argument("Tracker::step: the base pose X_CB is not a finite rigid pose");
+  }
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
   State& s = *state_;
@@ -156,7 +165,8 @@ FrameResult Tracker::step(const Cloud& cloud) {
   }
 
   if (s.update->fits_frame()) {
-    const FrameFit fit = s.update->fit_frame(view, initialized_now, *s.init, s.nodes, s.acc.count);
+    const FrameFit fit = s.update->fit_frame(view, initialized_now, *s.init, X_CB, s.nodes,
+                                                  s.acc.count);
     if (fit.reinit) {
       r.reinit = true;
       r.init_reason = InitReason::misfit;
@@ -210,7 +220,8 @@ FrameResult& Tracker::finish(FrameResult& r, std::chrono::steady_clock::time_poi
 }
 
 FrameFit UpdatePolicy::fit_frame(const PointsView& /*points*/, bool /*restarted*/,
-                                 const InitPolicy& /*init*/, Nodes& /*nodes*/,
+                                 const InitPolicy& /*init*/, const Eigen::Isometry3d* /*X_CB*/,
+                                 Nodes& /*nodes*/,
                                  std::vector<std::int64_t>& /*counts*/) {
   throw std::logic_error("UpdatePolicy::fit_frame: this policy updates per iteration");
 }

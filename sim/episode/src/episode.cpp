@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <chrono>
 #include <future>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "linksight/sim/extract.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/world.hpp"
+#include "linksight/tracker/seed.hpp"
 
 namespace linksight::sim {
 namespace {
@@ -16,6 +18,22 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 }  // namespace
+
+Eigen::Isometry3d base_prior_error(const Scene& scene) {
+  std::uint64_t state = derive_seed(scene.seed, "base_prior");
+  const auto normal = [&] {
+    const double u1 = unit_interval(splitmix64(state));
+    return standard_normal(u1, unit_interval(splitmix64(state)));
+  };
+  const BasePriorParams& p = scene.tracker.base_prior;
+  Eigen::Vector3d dp, dr;
+  for (int a = 0; a < 3; ++a) dp[a] = p.sigma_m * normal();
+  for (int a = 0; a < 3; ++a) dr[a] = p.sigma_rad * normal();
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.translation() = dp;
+  if (dr.norm() > 0) X.linear() = Eigen::AngleAxisd(dr.norm(), dr.normalized()).toRotationMatrix();
+  return X;
+}
 
 void EpisodeOptions::validate() const {
   if (frames < 0)
@@ -40,6 +58,9 @@ struct Episode::Impl {
   std::vector<Tracker> trackers;
   std::vector<EpisodeScorer> scorers;
   Eigen::Isometry3d X_CW;
+  // tracker.base_prior: the error of the base pose the trackers are given, drawn once per
+  // episode (a hand-eye calibration error moves with the base), in the base frame.
+  std::optional<Eigen::Isometry3d> X_BBprior;
   Nodes previous_C;  // the last frame's true nodes, camera frame
   bool chain_only = false;        // render the chain's box only, but for whole_frames
   int margin_px = 0;              // and that box grown by the segmentation's leakage reach
@@ -78,6 +99,7 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
     m.scorers.emplace_back(options.score);
   }
   m.X_CW = scene.camera.X_WC.inverse();
+  if (scene.tracker.base_prior.enabled) m.X_BBprior = base_prior_error(scene);
 }
 
 Episode::~Episode() {
@@ -129,6 +151,8 @@ const EpisodeFrame& Episode::step_frame() {
   std::swap(m.previous_C, o.truth_C);  // last frame's truth; both buffers are reused
   o.truth_C.resize(o.truth.nodes_W.size());
   for (std::size_t j = 0; j < o.truth_C.size(); ++j) o.truth_C[j] = m.X_CW * o.truth.nodes_W[j];
+  o.base_prior_C.reset();
+  if (m.X_BBprior) o.base_prior_C = m.X_CW * o.truth.X_WB * *m.X_BBprior;
   o.truth_motion = 0;
   if (f > 0)
     for (std::size_t j = 0; j < o.truth_C.size(); ++j)
@@ -153,7 +177,8 @@ const EpisodeFrame& Episode::step_frame() {
   o.scores.resize(m.trackers.size());
   double scoring = 0;
   for (std::size_t k = 0; k < m.trackers.size(); ++k) {
-    o.results[k] = m.trackers[k].step(m.cloud);  // its own time is in FrameResult::time_s
+    // Its own time is in FrameResult::time_s.
+    o.results[k] = m.trackers[k].step(m.cloud, o.base_prior_C ? &*o.base_prior_C : nullptr);
     t0 = std::chrono::steady_clock::now();
     const FrameResult& r = o.results[k];
     o.scores[k] = score_frame(r.lost ? Nodes{} : r.nodes, o.truth_C);

@@ -120,8 +120,8 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       const double limit = std::exp(-rate);
       for (double prod = next(); prod > limit; prod *= next()) ++holes;
     } else {
-      const double u1 = 1.0 - next(), u2 = next();
-      const double g = std::sqrt(-2 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
+      const double u1 = next();
+      const double g = standard_normal(u1, next());
       holes = std::max(0, static_cast<int>(std::lround(rate + std::sqrt(rate) * g)));
     }
     // Sizes log-normal: ln A ~ N(ln median, s^2) with s from the 90th percentile.

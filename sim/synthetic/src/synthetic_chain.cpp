@@ -17,9 +17,9 @@ class Rng {
  public:
   explicit Rng(std::uint64_t seed) : g_(seed) {}
   double uniform() { return unit_interval(g_()); }
-  double normal() {  // Box–Muller
-    const double u1 = 1.0 - uniform(), u2 = uniform();
-    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
+  double normal() {
+    const double u1 = uniform();
+    return standard_normal(u1, uniform());
   }
   Eigen::Vector3d unit() {
     Eigen::Vector3d v(normal(), normal(), normal());

@@ -365,6 +365,11 @@ Truth World::truth() const {
     out.X_WK.push_back(X_WK);
     out.nodes_W.push_back(eig(p));
   }
+  {
+    const btQuaternion q = s.body->getWorldToBaseRot().inverse();
+    out.X_WB.linear() = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).toRotationMatrix();
+    out.X_WB.translation() = eig(s.body->getBasePos());
+  }
   // Tip point p_M: one pitch beyond the last ball along its axis (Eq. 1).
   out.nodes_W.push_back(out.X_WK.back() * Eigen::Vector3d(0, 0, g.pitch));
   for (int i = 0; i < s.links(); ++i) out.joint_angles.push_back(s.body->getJointPos(i));

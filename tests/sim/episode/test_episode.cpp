@@ -131,6 +131,40 @@ TEST(Episode, SameScoresForAnyThreadCount) {
   EXPECT_EQ(errors(1), errors(2));
 }
 
+// tracker.base_prior: each frame's trackers get the true base pose (ball 0's centre at its
+// origin) times one error drawn per episode from the seed, about σ in size.
+TEST(Episode, BasePriorIsTheTrueBasePoseWithOneSeededErrorPerEpisode) {
+  Scene scene = load_scene(kScenes / "base_sweep.yaml");
+  EpisodeOptions o;
+  o.frames = 3;
+  o.modes = {parse_mode("chain-fit")};
+  {
+    Episode e(scene, o);
+    EXPECT_FALSE(e.step().base_prior_C.has_value());
+  }
+  scene.tracker.base_prior.enabled = true;
+  const Eigen::Isometry3d error = base_prior_error(scene);
+  const double sigma_m = scene.tracker.base_prior.sigma_m;
+  const double sigma_rad = scene.tracker.base_prior.sigma_rad;
+  EXPECT_GT(error.translation().norm(), 0.0);
+  EXPECT_LT(error.translation().norm(), 5 * sigma_m);
+  EXPECT_LT(Eigen::AngleAxisd(error.linear()).angle(), 5 * sigma_rad);
+  Scene other = scene;
+  other.seed += 1;
+  EXPECT_FALSE(base_prior_error(other).isApprox(error));
+  EXPECT_TRUE(base_prior_error(scene).isApprox(error, 0.0));  // same seed, same bits
+  const Eigen::Isometry3d X_CW = scene.camera.X_WC.inverse();
+  Episode e(scene, o);
+  for (int f = 0; f < 3; ++f) {
+    const EpisodeFrame& fr = e.step();
+    ASSERT_TRUE(fr.base_prior_C.has_value());
+    EXPECT_NEAR((fr.truth.X_WB.translation() - fr.truth.nodes_W[0]).norm(), 0.0, 1e-6);
+    const Eigen::Isometry3d expected = X_CW * fr.truth.X_WB * error;
+    EXPECT_TRUE(fr.base_prior_C->isApprox(expected, 1e-12));
+    EXPECT_LT(fr.scores[0].mean_err, 0.001);
+  }
+}
+
 // chain_only_images renders the chain's box only, yet every cloud, track and score is
 // the whole-frame episode's: leakage on (its margin must be rendered too), the hand in
 // front of the link, and whole_frames rendered whole.
@@ -256,6 +290,10 @@ TEST_F(Overrides, BadOverridesNameTheSetAndTheKey) {
   EXPECT_TRUE(has(e, "expected key.path=value")) << e;
   e = error_of(scene, {"camera.fps=[1"});
   EXPECT_TRUE(has(e, "not valid YAML")) << e;
+  e = error_of(scene, {"tracker.base_prior.sigma_m=0"});
+  EXPECT_TRUE(has(e, "tracker.base_prior.sigma_m = 0: must be in [1e-06, 1]")) << e;
+  e = error_of(scene, {"tracker.base_prior.enabled=maybe"});
+  EXPECT_TRUE(has(e, "tracker.base_prior.enabled")) << e;
   e = error_of(scene, {"tracker.iterations=0"});
   EXPECT_TRUE(has(e, "--set tracker.iterations=0: tracker.iterations = 0: must be in [1, 1000]")) << e;
 }

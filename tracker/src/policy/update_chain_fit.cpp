@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <cmath>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -23,8 +24,9 @@ constexpr int kSlideSteps = kSlideCandidates;
 
 class UpdateChainFit final : public UpdatePolicy {
  public:
-  UpdateChainFit(const ComponentGeometry& geometry, const ChainFitParams& params, int threads)
-      : geometry_(geometry), params_(params), threads_(threads) {}
+  UpdateChainFit(const ComponentGeometry& geometry, const ChainFitParams& params,
+                 const BasePriorParams& base, int threads)
+      : geometry_(geometry), params_(params), threads_(threads), base_(base) {}
 
   // Run in a mode's iterations (a composition outside the table): one fit per call, from
   // the nodes as they are. The fit makes its own association (nearest component surface),
@@ -39,14 +41,23 @@ class UpdateChainFit final : public UpdatePolicy {
   [[nodiscard]] bool fits_frame() const override { return true; }
 
   FrameFit fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
-                     Nodes& nodes, std::vector<std::int64_t>& counts) override {
+                     const Eigen::Isometry3d* X_CB, Nodes& nodes,
+                     std::vector<std::int64_t>& counts) override {
     passes_ = 0;
     if (restarted) {
       last_.reset();
       before_.reset();
+      last_X_CB_.reset();
     }
-    Fit fit = restarted ? fresh_fit(points, nodes, init, nullptr)
-                        : fit_from(points, predicted(points, nodes), false);
+    Fit fit;
+    if (restarted) {
+      fit = fresh_fit(points, nodes, init, nullptr, X_CB);
+    } else {
+      const Eigen::Isometry3d T = predicted(points, nodes, X_CB);
+      Nodes start = nodes;
+      for (Eigen::Vector3d& q : start) q = T * q;
+      fit = fit_from(points, start, false, anchor(X_CB, true));
+    }
     // Loss (issue 17, part 5): the evidence is the fit's, not an empty neighbourhood. A
     // fresh start replaces the track only when it explains the points far better.
     bool reinit = false;
@@ -54,8 +65,8 @@ class UpdateChainFit final : public UpdatePolicy {
                            params_.misfit_inliers * static_cast<double>(last_inliers_) ||
                        fit.result.rms > params_.misfit_rms)) {
       Fit fresh = fresh_fit(points, init.init(points, static_cast<int>(nodes.size()), &nodes),
-                            init, &nodes);
-      if (fresh.result.cost < params_.reinit_gain * fit.result.cost) {
+                            init, &nodes, X_CB);
+      if (total(fresh) < params_.reinit_gain * total(fit)) {
         fit = std::move(fresh);
         reinit = true;
         last_.reset();
@@ -64,6 +75,8 @@ class UpdateChainFit final : public UpdatePolicy {
     (void)replace(nodes, fit.chain.nodes(geometry_.pitch));
     before_ = std::move(last_);
     last_ = nodes;
+    last_X_CB_.reset();
+    if (X_CB != nullptr) last_X_CB_ = *X_CB;
     last_inliers_ = fit.result.inliers;
     // A ball node counts the points of its component (ball and neck); the tip node has
     // no ball under it and counts none.
@@ -78,35 +91,84 @@ class UpdateChainFit final : public UpdatePolicy {
     ChainFitResult result;
   };
 
+  // What a fit is chosen by: the points' robust cost and, with a base pose, the anchor's.
+  static double total(const Fit& f) { return f.result.cost + f.result.anchor_cost; }
+
+  // Where the base pose (issue 17, part 4) puts the first component: ball 0 at its
+  // origin; component 0 along joint 0's bend as the last fit had it in the base frame
+  // (the link holds its shape: σ the base's and bend_sigma together), or, with no fit to
+  // take it from, along the base's +X (straight_sigma: joint 0 may bend to the cone limit).
+  std::optional<ChainAnchor> anchor(const Eigen::Isometry3d* X_CB, bool tracking) const {
+    if (X_CB == nullptr) return std::nullopt;
+    ChainAnchor a;
+    a.c0 = X_CB->translation();
+    a.sigma_m = base_.sigma_m;
+    Eigen::Vector3d bend_B = Eigen::Vector3d::UnitX();
+    double bend_sigma = params_.straight_sigma;
+    if (tracking && last_ && last_X_CB_) {
+      const Eigen::Vector3d axis_C = ((*last_)[1] - (*last_)[0]).normalized();
+      bend_B = last_X_CB_->linear().transpose() * axis_C;
+      bend_sigma = params_.bend_sigma;
+    }
+    a.axis0 = (X_CB->linear() * bend_B).normalized();
+    a.sigma_rad = std::hypot(base_.sigma_rad, bend_sigma);
+    return a;
+  }
+
   // The fit from `start`: after an initialization, slid along itself into the fit's reach
-  // first; else holding the start's shape (the last fit's, moved with the link).
-  Fit fit_from(const PointsView& points, const Nodes& start, bool fresh) {
+  // first (`slide`); else holding the start's shape (the last fit's, moved with the link).
+  Fit fit_from(const PointsView& points, const Nodes& start, bool fresh,
+               const std::optional<ChainAnchor>& anchor, bool slide = true) {
     Fit f{chain_from_nodes(start, geometry_), {}};
+    const ChainAnchor* a = anchor ? &*anchor : nullptr;
     if (!fresh) {
       const ChainState shape = f.chain;
-      f.result = fit_chain(points, f.chain, geometry_, params_, threads_, &shape);
+      f.result = fit_chain(points, f.chain, geometry_, params_, threads_, &shape, a);
       passes_ += f.result.passes;
       return f;
     }
-    f.chain = slide_to_best(points, f.chain, geometry_, params_, threads_);
+    if (slide) {
+      f.chain = slide_to_best(points, f.chain, geometry_, params_, threads_);
+      passes_ += kSlideSteps;
+    }
     // No shape yet: a joint the points do not show (a tip neck turned away) comes out
     // straight, not wherever the initialization left it.
     ChainState straight = f.chain;
     std::fill(straight.axis.begin(), straight.axis.end(), Eigen::Vector3d::UnitZ());
     ChainFitParams loose = params_;
     loose.bend_sigma = params_.straight_sigma;
-    f.result = fit_chain(points, f.chain, geometry_, loose, threads_, &straight);
-    passes_ += f.result.passes + kSlideSteps;
+    f.result = fit_chain(points, f.chain, geometry_, loose, threads_, &straight, a);
+    passes_ += f.result.passes;
     return f;
+  }
+
+  // With a base pose, a start's ball 0 is the end nearer the base: the base, not the
+  // cloud's extent, says which end is which.
+  static Nodes base_first(Nodes start, const Eigen::Isometry3d* X_CB) {
+    if (X_CB != nullptr && (start.back() - X_CB->translation()).norm() <
+                               (start.front() - X_CB->translation()).norm())
+      std::reverse(start.begin(), start.end());
+    return start;
   }
 
   // A fit from an initialization on every point (`start`) and, where the cloud has
   // clutter set apart from the link (a mug behind it bends the LSQ curve toward itself),
   // from one on its largest connected cluster: whichever explains all the points better.
   // Clusters alone would not do: a link that hides part of itself falls apart into them.
+  // With a base pose, a third start competes: the chain straight out of the base, which
+  // holds where the points show only part of the link (the base end hidden).
   Fit fresh_fit(const PointsView& points, const Nodes& start, const InitPolicy& init,
-                const Nodes* previous) {
-    Fit best = fit_from(points, start, true);
+                const Nodes* previous, const Eigen::Isometry3d* X_CB) {
+    const std::optional<ChainAnchor> a = anchor(X_CB, false);
+    Fit best = fit_from(points, base_first(start, X_CB), true, a);
+    if (X_CB != nullptr) {
+      Nodes out(start.size());
+      const Eigen::Vector3d x_C = X_CB->linear().col(0);
+      for (std::size_t j = 0; j < out.size(); ++j)
+        out[j] = X_CB->translation() + static_cast<double>(j) * geometry_.pitch * x_C;
+      Fit other = fit_from(points, out, true, a, false);
+      if (total(other) < total(best)) best = std::move(other);
+    }
     // Cells of a neck radius: gaps under one cell are always bridged, and clutter 2√3
     // cells (24 mm) or more from the link never joins it.
     const std::vector<std::size_t> keep = largest_cluster(points, geometry_.neck_radius);
@@ -118,8 +180,10 @@ class UpdateChainFit final : public UpdatePolicy {
       z.push_back(points.z[i]);
     }
     const PointsView cluster{x, y, z};
-    Fit other = fit_from(points, init.init(cluster, static_cast<int>(start.size()), previous), true);
-    return other.result.cost < best.result.cost ? other : best;
+    Fit other = fit_from(
+        points, base_first(init.init(cluster, static_cast<int>(start.size()), previous), X_CB),
+        true, a);
+    return total(other) < total(best) ? other : best;
   }
 
   // Constant velocity (issue 17, part 6): the previous frame's rigid move again (the best
@@ -128,17 +192,27 @@ class UpdateChainFit final : public UpdatePolicy {
   // link holds its shape unless pushed: a part hidden this frame moves with the whole,
   // where a per-node velocity would keep turning it on its own. A still link's fits differ
   // by their noise, which a rigid move extrapolates to millimetres at the tip: the points
-  // (every kScreenStride-th) choose between the moved start and the last fit.
-  Nodes predicted(const PointsView& points, const Nodes& nodes) {
-    if (!last_ || !before_) return nodes;
-    Eigen::Matrix3Xd from(3, nodes.size()), to(3, nodes.size());
-    for (std::size_t j = 0; j < nodes.size(); ++j) {
-      from.col(static_cast<Eigen::Index>(j)) = (*before_)[j];
-      to.col(static_cast<Eigen::Index>(j)) = (*last_)[j];
+  // (every kScreenStride-th) choose between the moved start and the last fit. With base
+  // poses this frame and the last, the move is the base's since the last frame instead:
+  // measured, not extrapolated (an error in the pose that stays put cancels in it).
+  // Returns the move to start from (identity: from where the last fit left the link).
+  Eigen::Isometry3d predicted(const PointsView& points, const Nodes& nodes,
+                              const Eigen::Isometry3d* X_CB) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    if (X_CB != nullptr && last_X_CB_) {
+      T = *X_CB * last_X_CB_->inverse();
+    } else if (last_ && before_) {
+      Eigen::Matrix3Xd from(3, nodes.size()), to(3, nodes.size());
+      for (std::size_t j = 0; j < nodes.size(); ++j) {
+        from.col(static_cast<Eigen::Index>(j)) = (*before_)[j];
+        to.col(static_cast<Eigen::Index>(j)) = (*last_)[j];
+      }
+      T.matrix() = Eigen::umeyama(from, to, false);
+    } else {
+      return T;
     }
-    const Eigen::Matrix4d T = Eigen::umeyama(from, to, false);
     Nodes moved = nodes;
-    for (Eigen::Vector3d& q : moved) q = T.topLeftCorner<3, 3>() * q + T.topRightCorner<3, 1>();
+    for (Eigen::Vector3d& q : moved) q = T * q;
     const double still =
         chain_cost(points, chain_from_nodes(nodes, geometry_), geometry_, params_, threads_,
                    kScreenStride);
@@ -146,7 +220,7 @@ class UpdateChainFit final : public UpdatePolicy {
         chain_cost(points, chain_from_nodes(moved, geometry_), geometry_, params_, threads_,
                    kScreenStride);
     passes_ += 2;  // each 1/kScreenStride of one, counted whole
-    return moving < still ? moved : nodes;
+    return moving < still ? T : Eigen::Isometry3d::Identity();
   }
 
   static double replace(Nodes& nodes, const Nodes& fitted) {
@@ -160,7 +234,10 @@ class UpdateChainFit final : public UpdatePolicy {
   ComponentGeometry geometry_;
   ChainFitParams params_;
   int threads_;
+  BasePriorParams base_;
   std::optional<Nodes> last_, before_;  // the last two frames' fits, for the velocity
+  // The base pose given with the last fit (none: not given).
+  std::optional<Eigen::Isometry3d> last_X_CB_;
   std::size_t last_inliers_ = 0;        // the last fit's inliers, for the loss test
   int passes_ = 0;                      // this frame's passes over the points
 };
@@ -176,7 +253,8 @@ std::unique_ptr<UpdatePolicy> make_update_chain_fit(const TrackerParams& params)
   // The fit's passes run on the OpenMP back end's threads (the same bits as serial, see
   // fit_chain); serial and OpenCL fit on one host thread.
   const int threads = params.backend == BackendKind::openmp ? params.threads : 1;
-  return std::make_unique<UpdateChainFit>(params.geometry, params.policy.chain_fit, threads);
+  return std::make_unique<UpdateChainFit>(params.geometry, params.policy.chain_fit,
+                                          params.base_prior, threads);
 }
 
 }  // namespace linksight

@@ -65,6 +65,18 @@ struct ChainFitParams {
   void validate() const;
 };
 
+/// Where a known base pose puts the chain's first component (issue 17, part 4): ball 0's
+/// centre near `c0` and component 0's axis near `axis0`, each with its own σ. Weighed
+/// like the shape prior: a deviation of one σ costs what a point at the Huber threshold
+/// does, so points that show the first component outweigh it, and where they do not (the
+/// base end hidden) it holds the chain's index and place.
+struct ChainAnchor {
+  Eigen::Vector3d c0 = Eigen::Vector3d::Zero();     ///< [m, C]
+  double sigma_m = 0.001;                           ///< of c0 [m]
+  Eigen::Vector3d axis0 = Eigen::Vector3d::UnitZ(); ///< unit [C]
+  double sigma_rad = 0.01;                          ///< of axis0 [rad]
+};
+
 struct ChainFitResult {
   int iterations = 0;       ///< accepted Levenberg-Marquardt steps
   int passes = 0;           ///< passes over the points (one per step tried, plus the first)
@@ -76,6 +88,7 @@ struct ChainFitResult {
   std::size_t inliers = 0;
   double rms = 0.0;
   double cost = 0.0;        ///< robust cost of the points (without the shape prior)
+  double anchor_cost = 0.0; ///< the anchor's cost (0 without one), in the cost's units
   std::vector<std::int64_t> counts;  ///< inliers nearest each component (count entries)
 };
 
@@ -97,10 +110,12 @@ struct SurfaceHit {
 /// `threads` (0: one per core) share the passes; points are summed in fixed blocks in a
 /// fixed order, so the result is the same bits for any thread count. `shape`, when
 /// given, is a shape prior: each joint's bend is held near `shape`'s with σ
-/// params.bend_sigma (the previous frame's shape, moved with the link).
+/// params.bend_sigma (the previous frame's shape, moved with the link). `anchor`, when
+/// given, holds the first component where a known base puts it.
 ChainFitResult fit_chain(const PointsView& points, ChainState& chain,
                          const ComponentGeometry& geometry, const ChainFitParams& params,
-                         int threads = 1, const ChainState* shape = nullptr);
+                         int threads = 1, const ChainState* shape = nullptr,
+                         const ChainAnchor* anchor = nullptr);
 
 /// The fit's robust cost (Huber, points beyond max_distance counted at it) of `chain` over
 /// every `stride`-th point: to choose between starts cheaply.

@@ -50,9 +50,11 @@ class UpdatePolicy {
   /// The frame's nodes from the previous frame's (`nodes`, updated in place), or from an
   /// initialization's when `restarted` (first frame, re-initialization: nothing earlier
   /// frames said holds). `counts`: the points each node accounts for (nodes.size()).
-  /// The policy may re-initialize from `init` on its own evidence.
+  /// The policy may re-initialize from `init` on its own evidence. `X_CB`: the base's pose
+  /// this frame when known (TrackerParams::base_prior has its σ), else nullptr.
   virtual FrameFit fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
-                             Nodes& nodes, std::vector<std::int64_t>& counts);
+                             const Eigen::Isometry3d* X_CB, Nodes& nodes,
+                             std::vector<std::int64_t>& counts);
 };
 
 /// After an association (not in the frame that just initialized): the node whose

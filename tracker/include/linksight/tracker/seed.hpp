@@ -2,7 +2,9 @@
 /// @file Seeds: one seed feeds every generator; sub-seeds are derived by name or index,
 /// never by call order, so results do not depend on what ran before or on threads.
 
+#include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <string_view>
 
 namespace linksight {
@@ -22,6 +24,12 @@ namespace linksight {
 /// 64 random bits to a uniform double in [0, 1) (the top 53 bits).
 [[nodiscard]] constexpr double unit_interval(std::uint64_t bits) {
   return static_cast<double>(bits >> 11) * 0x1.0p-53;
+}
+
+/// A standard normal draw from two uniform draws in [0, 1) (Box–Muller; written out, as
+/// the standard's distributions differ between libraries).
+[[nodiscard]] inline double standard_normal(double u1, double u2) {
+  return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(2 * std::numbers::pi * u2);
 }
 
 /// Sub-seed for item `index` (a frame, a pixel, a sweep cell) of stream `seed`.

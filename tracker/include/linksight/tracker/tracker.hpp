@@ -2,6 +2,8 @@
 /// @file The shape tracker: Algorithm 1's frame loop (association by a back end, then a
 /// mode's policies: init, update, re-initialization trigger, output; mode.hpp).
 
+#include <Eigen/Geometry>
+
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -23,12 +25,31 @@ inline constexpr int kMaxNodes = 1000;
 inline constexpr int kMaxIterations = 1000;
 inline constexpr int kMaxThreads = 1024;
 
+/// A known base pose (issue 17, part 4): on the robot, the flange pose from the arm's
+/// joints through the hand–eye calibration. The base frame B is the chain's: ball 0's
+/// centre at its origin, component 0 leaving along its +X when joint 0 is straight.
+/// Step() takes the pose X_CB per frame; these are its σ, and whether `linksight
+/// run`/`sweep` give one (the true pose with an error drawn once per episode).
+struct BasePriorParams {
+  bool enabled = false;    ///< run/sweep pass the true base pose, with error, to step()
+  double sigma_m = 0.001;  ///< the base position's σ, per axis [m]
+  double sigma_rad = 0.5 * 3.14159265358979323846 / 180.0;  ///< its orientation's σ [rad]
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("enabled", enabled);
+    ar("sigma_m", sigma_m, fields::in(1e-6, 1));
+    ar("sigma_deg", sigma_rad, fields::deg(fields::in(0.001, 90)));
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
+};
+
 struct TrackerParams {
   TrackerMode mode;         ///< a row of the mode table (default: paper)
   PolicyParams policy;      ///< each policy's own settings; the mode reads its policies'
   BackendKind backend = BackendKind::serial;
   OpenCLOptions opencl;     ///< used by BackendKind::opencl
   int threads = 0;          ///< parallel back ends: 0 = one per core
+  BasePriorParams base_prior;  ///< chain-fit: how far a base pose given to step() is trusted
   int nodes = 12;           ///< M+1 reference vectors (M = 11 components)
   int iterations = 4;       ///< association/mean iterations per frame (Algorithm 1)
   double tolerance = 0.0;   ///< stop early when no node moves more than this [m]; 0: never
@@ -48,6 +69,7 @@ struct TrackerParams {
     ar("iterations", iterations, fields::in(1, kMaxIterations));
     ar("tolerance_m", tolerance, fields::in(0, 1));
     ar("chain_fit", policy.chain_fit);  // update chain-fit's settings, a block
+    ar("base_prior", base_prior);
   }
   /// Throws fields::FieldError naming the offending key and value.
   void validate() const;
@@ -103,8 +125,11 @@ class Tracker {
   Tracker(Tracker&&) noexcept;
   Tracker& operator=(Tracker&&) noexcept;
 
-  /// Runs Algorithm 1 on one cloud with the mode's policies. Never throws for bad data: it reports `lost`.
-  FrameResult step(const Cloud& cloud);
+  /// Runs Algorithm 1 on one cloud with the mode's policies. Never throws for bad data: it
+  /// reports `lost`. `X_CB`: the base's pose in the camera frame this frame, when known
+  /// (BasePriorParams; a mode whose update does not fit the chain ignores it); throws
+  /// std::invalid_argument for a pose that is not finite or not rigid.
+  FrameResult step(const Cloud& cloud, const Eigen::Isometry3d* X_CB = nullptr);
   /// Forgets the previous output; the next frame initializes from scratch.
   void reset();
 

@@ -4,6 +4,7 @@
 /// keeps nothing of earlier ones but the scorers' few numbers per frame.
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,11 +46,19 @@ struct EpisodeFrame {
   Truth truth;             ///< world frame W
   Nodes truth_C;           ///< the true nodes in the camera frame C [m]
   double truth_motion = 0; ///< largest true node displacement since the last frame [m]
+  /// The base pose the trackers were given (scene tracker.base_prior): the true one
+  /// with the episode's error (base_prior_error); none when the scene gives none.
+  std::optional<Eigen::Isometry3d> base_prior_C;
   const DepthFrame* image = nullptr;
   const Cloud* cloud = nullptr;
   std::vector<FrameResult> results;  ///< per compared mode, camera frame
   std::vector<FrameScore> scores;    ///< per compared mode
 };
+
+/// The error of the base pose an episode gives its trackers (tracker.base_prior): drawn
+/// once per episode from the scene's seed, σ sigma_m per axis and sigma_deg about each
+/// axis, in the base frame: the prior is X_CB X_BB' with X_BB' this.
+[[nodiscard]] Eigen::Isometry3d base_prior_error(const Scene& scene);
 
 class Episode {
  public:

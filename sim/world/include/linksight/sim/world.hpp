@@ -124,6 +124,9 @@ struct Truth {
   /// the M+1 = 12 reference points the tracker estimates (Eq. 1) [m, W].
   Nodes nodes_W;
   std::vector<Eigen::Isometry3d> X_WK;  ///< component frames: origin ball centre, Z toward the next
+  /// The base (the flange): ball 0's centre at its origin, component 0 along its +X when
+  /// joint 0 is straight.
+  Eigen::Isometry3d X_WB = Eigen::Isometry3d::Identity();
   std::vector<double> joint_angles;     ///< 3 per joint (bend y, bend z, twist) [rad]
   bool contact = false;                 ///< anything touches the chain
 };
