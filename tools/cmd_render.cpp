@@ -78,7 +78,8 @@ Runner add_render(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--out", o->out,
                  "output directory: depth/, labels/, clouds/, intrinsics.json, camera.json, "
-                 "truth.csv (camera frame), occlusion.csv")
+                 "truth.csv (camera frame), occlusion.csv, base_pose.csv (true X_CB, for track "
+                 "--base-prior)")
       ->capture_default_str();
   app.add_flag("--force", o->force, "replace an existing output directory");
   app.add_flag("--quiet", o->quiet, "print nothing on success");

@@ -13,6 +13,7 @@
 #include "format.hpp"
 #include "params_json.hpp"
 #include "linksight/io/atomic_file.hpp"
+#include "linksight/io/base_pose.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
 #include "linksight/tracker/opencl.hpp"
@@ -42,6 +43,9 @@ struct TrackOptions {
   double max_depth = std::numeric_limits<double>::infinity();
   std::vector<double> crop;
   std::string lost_frames = "error";
+  std::string base_prior;
+  double base_prior_sigma_m = BasePriorParams{}.sigma_m;
+  double base_prior_sigma_deg = BasePriorParams{}.sigma_rad * 180 / 3.14159265358979323846;
   std::uint64_t seed = 0;
   std::string out = "out/track";
   bool quiet = false;
@@ -85,6 +89,9 @@ int run_track(const TrackOptions& o) {
   p.policy.lsq_init.pitch = o.pitch;
   p.geometry.pitch = o.pitch;
   p.policy.som_init.seed = o.seed;
+  p.base_prior.enabled = !o.base_prior.empty();
+  p.base_prior.sigma_m = o.base_prior_sigma_m;
+  p.base_prior.sigma_rad = o.base_prior_sigma_deg * 3.14159265358979323846 / 180;
   p.validate();
   if (o.lost_frames != "error" && o.lost_frames != "keep") {
     throw std::invalid_argument("--lost-frames: unknown value '" + o.lost_frames +
@@ -102,6 +109,9 @@ int run_track(const TrackOptions& o) {
   depth.validate();
 
   const std::vector<fs::path> frames = io::list_frames(o.input);
+  // Read whole before anything is written: a bad row leaves no output.
+  std::vector<Eigen::Isometry3d> base_poses;
+  if (!o.base_prior.empty()) base_poses = io::read_base_poses(o.base_prior, frames.size());
   std::optional<fs::path> explicit_intrinsics;
   if (!o.intrinsics.empty()) explicit_intrinsics = fs::path(o.intrinsics);
   std::map<fs::path, io::Intrinsics> intrinsics_cache;
@@ -143,7 +153,7 @@ int run_track(const TrackOptions& o) {
       k = &it->second;
     }
     const Cloud cloud = io::load_frame(path, k, depth);
-    const FrameResult r = tracker.step(cloud);
+    const FrameResult r = tracker.step(cloud, base_poses.empty() ? nullptr : &base_poses[f]);
     if (r.n_out_of_range > 0 && !r.lost) {
       std::cerr << "linksight: " << path.string() << ": dropped " << r.n_out_of_range
                 << " points beyond " << kMaxCoordinate << " m\n";
@@ -185,6 +195,7 @@ int run_track(const TrackOptions& o) {
   params["nodes"] = p.nodes;
   params["pitch_m"] = p.policy.lsq_init.pitch;
   params["seed"] = p.policy.som_init.seed;
+  params["base_prior_file"] = o.base_prior;
   nlohmann::json summary = {
       {"input", o.input},
       {"frames", frames.size()},
@@ -258,6 +269,16 @@ Runner add_track(CLI::App& app) {
          "keep: record it (lost=1) and go on")
       ->capture_default_str();
   app.add_option("--seed", o->seed, "seed of random-sample init")->capture_default_str();
+  app.add_option("--base-prior", o->base_prior,
+                 "chain-fit: the base's pose per frame, a CSV frame,x_m,y_m,z_m,qw,qx,qy,qz "
+                 "(X_CB, camera frame; frame = index in the input's order; as render's "
+                 "base_pose.csv)");
+  app.add_option("--base-prior-sigma-m", o->base_prior_sigma_m,
+                 "with --base-prior: the pose's position sigma [m]")
+      ->capture_default_str();
+  app.add_option("--base-prior-sigma-deg", o->base_prior_sigma_deg,
+                 "with --base-prior: the pose's orientation sigma [deg]")
+      ->capture_default_str();
   app.add_option("--out", o->out, "output directory")->capture_default_str();
   app.add_flag("--quiet", o->quiet, "print nothing on success");
   return [o] { return run_track(*o); };

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "linksight/io/base_pose.hpp"
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/ply.hpp"
 #include "linksight/io/intrinsics.hpp"
@@ -349,7 +350,8 @@ TEST_F(Cli, RenderWritesARecordingThatTrackReplays) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/occluder_pass.yaml";
   const CliRun r = run("render --scene " + scene + " --frames 3 --out " + out.string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
-  for (const char* f : {"intrinsics.json", "camera.json", "truth.csv", "occlusion.csv"})
+  for (const char* f :
+       {"intrinsics.json", "camera.json", "truth.csv", "occlusion.csv", "base_pose.csv"})
     EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
   const io::Intrinsics k = io::read_intrinsics(out / "intrinsics.json");
   EXPECT_EQ(k.width, 640);
@@ -391,6 +393,57 @@ TEST_F(Cli, RenderWritesARecordingThatTrackReplays) {
                              " --max-depth 0.9 --out " + (dir / "track_raw").string(), dir);
   ASSERT_EQ(raw.code, 0) << raw.err;
   EXPECT_EQ(lines_of(dir / "track_raw" / "frames.csv").size(), 4u);
+  // The true base pose: ball 0's centre is its origin; it feeds track --base-prior.
+  const std::vector<Eigen::Isometry3d> base = io::read_base_poses(out / "base_pose.csv", 3);
+  double x0 = 0, y0 = 0, z0 = 0;
+  std::sscanf(truth[1].c_str(), "0,%*f,0,%lf,%lf,%lf", &x0, &y0, &z0);
+  EXPECT_LT((base[0].translation() - Eigen::Vector3d(x0, y0, z0)).norm(), 2e-6);
+  const CliRun prior = run("track --quiet --input " + (out / "clouds").string() +
+                               " --base-prior " + (out / "base_pose.csv").string() + " --out " +
+                               (dir / "track_prior").string(), dir);
+  ASSERT_EQ(prior.code, 0) << prior.err;
+  EXPECT_EQ(lines_of(dir / "track_prior" / "frames.csv").size(), 4u);
+  const std::string summary = slurp_text(dir / "track_prior" / "summary.json");
+  EXPECT_NE(summary.find("\"base_prior_file\": \"" + (out / "base_pose.csv").string()),
+            std::string::npos)
+      << summary;
+}
+
+// track --base-prior: a CSV that lacks a frame, has a wrong column, a value that is not a
+// finite number, a frame twice or beyond the input, or a quaternion that is not a
+// rotation is named in one line, exit 2, no output; so is a sigma out of range.
+TEST_F(Cli, BasePriorCsvBadInput) {
+  const fs::path seq = good_sequence(3);
+  const std::string header = "frame,x_m,y_m,z_m,qw,qx,qy,qz\n";
+  const std::string row0 = "0,-0.2,0,0.6,1,0,0,0\n", row1 = "1,-0.2,0,0.6,1,0,0,0\n",
+                    row2 = "2,-0.2,0,0.6,1,0,0,0\n";
+  const fs::path csv = dir / "base.csv";
+  const std::string args = "--input " + seq.string() + " --base-prior " + csv.string();
+  std::ofstream(csv) << header << row0 << row1 << row2;
+  const CliRun ok = run("track --quiet " + args + " --out " + (dir / "ok").string(), dir);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  std::ofstream(csv) << header << row0 << row2;
+  expect_bad_input(args, "base.csv", "no row for frame 1");
+  std::ofstream(csv) << "frame,x_m,y_m,z_m,qw,qx,qy,qz,yaw\n";
+  expect_bad_input(args, "base.csv:1", "unknown column 'yaw'");
+  std::ofstream(csv) << "frame,x_m,y_m,z_m,qw,qx,qy\n";
+  expect_bad_input(args, "base.csv:1", "no column 'qz'");
+  std::ofstream(csv) << header << row0 << "1,-0.2,nan,0.6,1,0,0,0\n" << row2;
+  expect_bad_input(args, "base.csv:3", "y_m 'nan' is not a finite number");
+  std::ofstream(csv) << header << row0 << "1,-0.2,0,1e999,1,0,0,0\n" << row2;
+  expect_bad_input(args, "base.csv:3", "z_m '1e999' is not a finite number");
+  std::ofstream(csv) << header << row0 << row1 << row1 << row2;
+  expect_bad_input(args, "base.csv:4", "frame 1 given twice");
+  std::ofstream(csv) << header << row0 << row1 << row2 << "3,-0.2,0,0.6,1,0,0,0\n";
+  expect_bad_input(args, "base.csv:5", "frame 3 is not among the 3 input frames");
+  std::ofstream(csv) << header << row0 << "1,-0.2,0,0.6,2,0,0,0\n" << row2;
+  expect_bad_input(args, "base.csv:3", "quaternion");
+  std::ofstream(csv) << header << row0 << "1,-0.2,0,0.6\n" << row2;
+  expect_bad_input(args, "base.csv:3", "4 fields, expected 8");
+  std::ofstream(csv) << header << row0 << row1 << row2;
+  expect_bad_input(args + " --base-prior-sigma-m 0", "base_prior.sigma_m", "must be in");
+  expect_bad_input("--input " + seq.string() + " --base-prior " + (dir / "none.csv").string(),
+                   "none.csv", "cannot be read");
 }
 
 TEST_F(Cli, RenderNoiseOffIsTheIdealCamera) {

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "linksight/io/atomic_file.hpp"
+#include "linksight/io/base_pose.hpp"
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/intrinsics.hpp"
@@ -116,8 +117,10 @@ Recorder::Recorder(fs::path dir, const CameraParams& camera, bool force)
   }
   truth_.open(out_.path() / "truth.csv");
   occlusion_.open(out_.path() / "occlusion.csv");
-  if (!truth_ || !occlusion_) throw io::InputError(out_.final_path().string() + ": cannot write");
+  base_.open(out_.path() / "base_pose.csv");
+  if (!truth_ || !occlusion_ || !base_) throw io::InputError(out_.final_path().string() + ": cannot write");
   write_truth_header(truth_);
+  io::write_base_pose_header(base_);
   occlusion_ << "frame,component,visible_px,visible_px_unoccluded,occluded_fraction\n"
              << std::fixed << std::setprecision(6);
 }
@@ -131,11 +134,13 @@ void Recorder::write_frame(int frame, const Truth& truth, const DepthFrame& imag
                   image.label);
   io::write_ply(out_.path() / "clouds" / frame_name(frame, "ply"), cloud);
   write_truth_rows(truth_, frame, truth, camera_.X_WC.inverse());
+  io::write_base_pose_row(base_, frame, camera_.X_WC.inverse() * truth.X_WB);
   for (std::size_t c = 0; c < image.visible_px.size(); ++c) {
     occlusion_ << frame << ',' << c << ',' << image.visible_px[c] << ','
                << image.visible_px_unoccluded[c] << ',' << image.occluded_fraction[c] << '\n';
   }
-  if (!truth_ || !occlusion_) throw io::InputError(out_.final_path().string() + ": write failed");
+  if (!truth_ || !occlusion_ || !base_)
+    throw io::InputError(out_.final_path().string() + ": write failed");
 }
 
 void Recorder::commit() {
@@ -143,7 +148,8 @@ void Recorder::commit() {
   write_camera_json(out_.path() / "camera.json", camera_);
   truth_.close();
   occlusion_.close();
-  if (!truth_ || !occlusion_) throw io::InputError(out_.final_path().string() + ": write failed");
+  base_.close();
+  if (!truth_ || !occlusion_ || !base_) throw io::InputError(out_.final_path().string() + ": write failed");
   out_.commit();
 }
 

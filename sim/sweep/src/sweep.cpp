@@ -17,6 +17,7 @@
 #include "linksight/io/error.hpp"
 #include "linksight/sim/episode.hpp"
 #include "linksight/sim/scene.hpp"
+#include "linksight/io/csv.hpp"
 #include "linksight/sim/yaml.hpp"
 #include "linksight/tracker/format.hpp"
 #include "linksight/tracker/seed.hpp"
@@ -27,15 +28,6 @@ namespace {
 
 constexpr const char* kManifest = "sweep.json";
 constexpr int kManifestVersion = 1;
-
-std::vector<std::string> split(const std::string& s, char sep) {
-  std::vector<std::string> out;
-  std::string item;
-  std::stringstream ss(s);
-  while (std::getline(ss, item, sep)) out.push_back(item);
-  if (!s.empty() && s.back() == sep) out.emplace_back();
-  return out;
-}
 
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t");
@@ -64,30 +56,6 @@ std::vector<std::string> shard_columns(const SweepSpec& spec) {
   std::vector<std::string> c = sweep_columns(spec);
   for (std::size_t i = 2; i < std::size(kTiming); ++i) c.emplace_back(kTiming[i]);
   return c;
-}
-
-struct ShardFile {
-  std::vector<std::string> header;
-  std::vector<std::vector<std::string>> rows;
-};
-ShardFile read_csv(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in) throw io::InputError(path.string() + ": cannot be read");
-  ShardFile f;
-  std::string line;
-  if (!std::getline(in, line)) throw io::InputError(path.string() + ": empty file");
-  f.header = split(line, ',');
-  int n = 1;
-  while (std::getline(in, line)) {
-    ++n;
-    if (line.empty()) continue;
-    f.rows.push_back(split(line, ','));
-    if (f.rows.back().size() != f.header.size())
-      throw io::InputError(path.string() + ":" + std::to_string(n) + ": " +
-                           std::to_string(f.rows.back().size()) + " fields, expected " +
-                           std::to_string(f.header.size()));
-  }
-  return f;
 }
 
 std::size_t parse_index(const std::string& s, const fs::path& path) {
@@ -145,7 +113,7 @@ SweepAxis parse_axis(const std::string& arg) {
     throw io::InputError("--axis '" + arg + "': expected key=v1,v2,...");
   SweepAxis a;
   a.key = trim(arg.substr(0, eq));
-  for (const std::string& v : split(arg.substr(eq + 1), ',')) {
+  for (const std::string& v : io::split(arg.substr(eq + 1), ',')) {
     if (trim(v).empty()) throw io::InputError("--axis '" + arg + "': empty value");
     a.values.push_back(trim(v));
   }
@@ -399,7 +367,7 @@ bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int c
   const fs::path path = dir / shard_file_name(shard, count);
   if (!fs::exists(path)) return false;
   try {
-    const ShardFile f = read_csv(path);
+    const io::CsvTable f = io::read_csv(path);
     if (f.header != shard_columns(spec)) return false;
     std::multiset<std::size_t> have;
     for (const auto& row : f.rows) have.insert(parse_index(row[0], path));
@@ -424,7 +392,7 @@ MergeResult merge_sweep(const fs::path& dir) {
     if (is_shard_file_name(entry.path().filename().string())) files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   for (const fs::path& path : files) {
-    const ShardFile f = read_csv(path);
+    const io::CsvTable f = io::read_csv(path);
     if (f.header != header)
       throw io::InputError(path.string() + ": its columns differ from " +
                            (dir / kManifest).string() + "'s sweep");

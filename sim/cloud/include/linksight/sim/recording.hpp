@@ -54,7 +54,7 @@ class Recorder {
  private:
   io::StagedDir out_;  // declared first: the streams close before it cleans up
   CameraParams camera_;
-  std::ofstream truth_, occlusion_;
+  std::ofstream truth_, occlusion_, base_;
 };
 
 }  // namespace linksight::sim
