@@ -22,9 +22,9 @@ struct Frames {
   std::vector<double> cx, cy, cz, ax, ay, az;  // count each
 };
 
-Frames frames_of(const ChainState& chain, double pitch) {
+Frames frames_of(const ChainState& chain, const ComponentGeometry& g) {
   Frames f;
-  f.centre = chain.nodes(pitch);
+  f.centre = chain.nodes(g.pitch);
   for (std::size_t k = 0; k < chain.axis.size(); ++k) {
     const Eigen::Vector3d& a = chain.axis[k];
     const Eigen::Vector3d t = a.unitOrthogonal();
@@ -50,19 +50,24 @@ struct Part {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // outward, at the nearest point
 };
 
-// The distance only (the search's inner step): d = p - c_k, dn2 = |d|^2.
+// The distance only (the search's inner step): d = p - c_k, dn2 = |d|^2. `norm` is the
+// distance from p to the nearest point of the ball's centre or the neck's axis, which the
+// normal is divided by.
 struct Candidate {
   double distance;
   double s;
   bool neck;
+  double norm;
 };
 inline Candidate candidate(double dx, double dy, double dz, double dn2, double ax, double ay,
                            double az, const ComponentGeometry& g) {
-  Candidate out{std::sqrt(dn2) - g.ball_radius, 0.0, false};
+  const double dn = std::sqrt(dn2);
+  Candidate out{dn - g.ball_radius, 0.0, false, dn};
   const double s = std::clamp(dx * ax + dy * ay + dz * az, 0.0, g.neck_length);
   const double ex = dx - s * ax, ey = dy - s * ay, ez = dz - s * az;
-  const double neck = std::sqrt(ex * ex + ey * ey + ez * ez) - g.neck_radius;
-  if (neck < out.distance) out = {neck, s, true};
+  const double en = std::sqrt(ex * ex + ey * ey + ez * ez);
+  const double neck = en - g.neck_radius;
+  if (neck < out.distance) out = {neck, s, true, en};
   return out;
 }
 
@@ -81,8 +86,7 @@ Hit hit_of(const Eigen::Vector3d& p, const Frames& f, std::size_t k, const Candi
   const Eigen::Vector3d a(f.ax[k], f.ay[k], f.az[k]);
   const Eigen::Vector3d d = p - Eigen::Vector3d(f.cx[k], f.cy[k], f.cz[k]);
   const Eigen::Vector3d e = c.neck ? Eigen::Vector3d(d - c.s * a) : d;
-  const double en = e.norm();
-  h.part.normal = en > 0 ? Eigen::Vector3d(e / en) : (c.neck ? a.unitOrthogonal() : a);
+  h.part.normal = c.norm > 0 ? Eigen::Vector3d(e / c.norm) : (c.neck ? a.unitOrthogonal() : a);
   return h;
 }
 
@@ -90,16 +94,21 @@ Hit hit_of(const Eigen::Vector3d& p, const Frames& f, std::size_t k, const Candi
 Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g, double* d2) {
   const std::size_t count = f.cx.size();
   if (count == 0) return {};
-  // Squared distances to every centre; the nearest centre's component is tried first.
-  std::size_t m = 0;
+  // Squared distances to every centre (a loop the compiler vectorizes); the nearest
+  // centre's component is tried first.
+  const double px = p.x(), py = p.y(), pz = p.z();
+  const double* cx = f.cx.data();
+  const double* cy = f.cy.data();
+  const double* cz = f.cz.data();
   for (std::size_t k = 0; k < count; ++k) {
-    const double dx = p.x() - f.cx[k], dy = p.y() - f.cy[k], dz = p.z() - f.cz[k];
+    const double dx = px - cx[k], dy = py - cy[k], dz = pz - cz[k];
     d2[k] = dx * dx + dy * dy + dz * dz;
-    if (d2[k] < d2[m]) m = k;
   }
+  std::size_t m = 0;
+  for (std::size_t k = 1; k < count; ++k)
+    if (d2[k] < d2[m]) m = k;
   const auto try_k = [&](std::size_t k) {
-    return candidate(p.x() - f.cx[k], p.y() - f.cy[k], p.z() - f.cz[k], d2[k], f.ax[k], f.ay[k],
-                     f.az[k], g);
+    return candidate(px - cx[k], py - cy[k], pz - cz[k], d2[k], f.ax[k], f.ay[k], f.az[k], g);
   };
   Candidate best = try_k(m);
   std::size_t bk = m;
@@ -338,7 +347,7 @@ void ChainFitParams::validate() const {
 SurfaceHit nearest_surface(const Eigen::Vector3d& p, const ChainState& chain,
                            const ComponentGeometry& geometry) {
   std::vector<double> d2(chain.axis.size());
-  const Hit h = nearest(p, frames_of(chain, geometry.pitch), geometry, d2.data());
+  const Hit h = nearest(p, frames_of(chain, geometry), geometry, d2.data());
   return {h.k, h.part.distance};
 }
 
@@ -347,7 +356,7 @@ double chain_cost(const PointsView& pts, const ChainState& chain, const Componen
   params.validate();
   if (threads <= 0) threads = omp_get_num_procs();
   if (stride == 0) throw std::invalid_argument("chain_cost: stride must be at least 1");
-  return pass(pts, frames_of(chain, g.pitch), chain, g, params, threads, stride).robust;
+  return pass(pts, frames_of(chain, g), chain, g, params, threads, stride).robust;
 }
 
 ChainState slide_to_best(const PointsView& pts, const ChainState& start,
@@ -378,7 +387,7 @@ ChainState slide_to_best(const PointsView& pts, const ChainState& start,
     }
     const ChainState candidate = chain_from_nodes(moved, g);
     const double cost =
-        pass(pts, frames_of(candidate, g.pitch), candidate, g, params, threads).robust;
+        pass(pts, frames_of(candidate, g), candidate, g, params, threads).robust;
     if (cost < best_cost) {
       best_cost = cost;
       best = candidate;
@@ -414,7 +423,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   Eigen::VectorXd b(n);
   // One pass per iteration: it linearizes at the chain and gives the chain's cost; a
   // trial that costs more is dropped and the damping raised (one more pass).
-  Frames f = frames_of(chain, g.pitch);
+  Frames f = frames_of(chain, g);
   // The accepted chain's association, and a trial's own when it searches (kept only if
   // the trial is accepted, so a rejected trial leaves the association it was priced
   // against).
@@ -455,7 +464,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
       chain = std::move(trial);      // unchecked (one pass less; it moves next to nothing)
       break;
     }
-    Frames tf = frames_of(trial, g.pitch);
+    Frames tf = frames_of(trial, g);
     double drift = 0;
     for (std::size_t k = 0; k < after.size(); ++k)
       drift = std::max(drift, (after[k] - searched_at[k]).norm());
@@ -484,7 +493,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   result.inliers = current.inliers;
   result.rms = current.inliers ? std::sqrt(current.sum2 / static_cast<double>(current.inliers)) : 0.0;
   result.cost = current.robust;
-  result.anchor_cost = anchor ? anchor_prior(chain, frames_of(chain, g.pitch), *anchor,
+  result.anchor_cost = anchor ? anchor_prior(chain, frames_of(chain, g), *anchor,
                                              params.huber, nullptr, nullptr)
                               : 0.0;
   result.counts = std::move(current.count);
