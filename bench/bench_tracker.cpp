@@ -1,5 +1,6 @@
 // Tracker throughput: paper mode, 12 nodes, 4 iterations, ms per frame over N points,
-// for every back end; chain-fit beside it on serial and OpenMP (tracker_step_chain_fit/),
+// for every back end; chain-fit beside it on every back end (tracker_step_chain_fit/;
+// on OpenCL its passes run as kernels when the device has double precision),
 // for the ratio mode / paper mode measured in one run. `--smoke` registers one tiny size only (ctest runs it untimed).
 //   linksight_bench --benchmark_filter=opencl     # one back end (the engine is in the name)
 #include <benchmark/benchmark.h>
@@ -94,7 +95,8 @@ int main(int argc, char** argv) {
     bm->Unit(benchmark::kMillisecond)->UseRealTime();
   }
   for (const Engine& e : {Engine{"serial", BackendKind::serial, ClAccumulation::reduction},
-                          Engine{"openmp", BackendKind::openmp, ClAccumulation::reduction}}) {
+                          Engine{"openmp", BackendKind::openmp, ClAccumulation::reduction},
+                          Engine{"opencl", BackendKind::opencl, ClAccumulation::reduction}}) {
     auto* bm = benchmark::RegisterBenchmark(
         (std::string("tracker_step_chain_fit/") + e.name).c_str(), BM_TrackerStep, e.kind,
         e.accumulation, "chain-fit");

@@ -14,10 +14,12 @@
 
 #include "linksight/tracker/backend.hpp"
 #include "linksight/tracker/opencl.hpp"
+#include "chain_pass.hpp"
 
 namespace linksight {
 namespace detail {
 extern const char kSomKernelSource[];
+extern const char kChainKernelSource[];
 }  // namespace detail
 
 namespace {
@@ -243,7 +245,7 @@ Program build(cl_context ctx, cl_device_id dev, const char* source,
   return program;
 }
 
-class OpenCLBackend final : public Backend {
+class OpenCLBackend final : public Backend, public ChainPassDevice {
  public:
   explicit OpenCLBackend(const OpenCLOptions& options) : options_(options) {
     const Selected sel = select_device(options);
@@ -290,6 +292,22 @@ class OpenCLBackend final : public Backend {
       throw std::invalid_argument("OpenCLOptions.work_group_size = " + std::to_string(wg_) +
                                   ": device '" + info_.name + "' allows at most " +
                                   std::to_string(limit));
+    }
+    // chain-fit's passes need double precision; without it they run on the host.
+    if (info_.fp64) {
+      chain_program_ = build(context_.get(), device_, detail::kChainKernelSource, info_.name);
+      std::size_t chain_limit = limit;
+      for (auto [kernel, name] :
+           {std::pair{&k_chain_point_, "chain_point"}, std::pair{&k_chain_sums_, "chain_sums"}}) {
+        *kernel = Kernel(clCreateKernel(chain_program_.get(), name, &err));
+        check(err, "clCreateKernel");
+        std::size_t kernel_max = 0;
+        check(clGetKernelWorkGroupInfo(kernel->get(), device_, CL_KERNEL_WORK_GROUP_SIZE,
+                                       sizeof kernel_max, &kernel_max, nullptr),
+              "clGetKernelWorkGroupInfo");
+        chain_limit = std::min(chain_limit, kernel_max);
+      }
+      chain_wg_ = std::min(wg_, chain_limit);
     }
   }
 
@@ -396,7 +414,100 @@ class OpenCLBackend final : public Backend {
 
   double device_seconds() const override { return device_seconds_; }
 
+  ChainPassDevice* chain_pass_device() override { return info_.fp64 ? this : nullptr; }
+
+  void set_chain_points(const PointsView& p) override {
+    set_points(p);
+    const std::size_t n = p.size();
+    if (n == 0) return;
+    const std::size_t cap = chain_points_;  // points the buffers hold
+    for (Buffer* buf : {&chain_assoc_[0], &chain_assoc_[1]})
+      grow(*buf, n * sizeof(cl_short), cap * sizeof(cl_short));
+    grow(chain_comp_, n * sizeof(cl_int), cap * sizeof(cl_int));
+    grow(chain_val_, n * kChainValues * sizeof(cl_double), cap * kChainValues * sizeof(cl_double));
+    chain_points_ = std::max(chain_points_, n);
+  }
+
+  detail::ChainSums chain_pass(const detail::ChainFrames& f, const ComponentGeometry& g,
+                               const ChainFitParams& params, bool search, int read,
+                               int write) override {
+    const int count = static_cast<int>(f.cx.size());
+    detail::ChainSums total(f.cx.size());
+    events_.clear();
+    if (n_ == 0 || count == 0) return total;
+    if (read < 0 || read > 1 || write < 0 || write > 1)
+      throw std::invalid_argument("OpenCL chain pass: association buffers are 0 and 1");
+    // The frames, one array after another (chain.cl's CX..T2Z), and the geometry.
+    std::vector<cl_double> fr;
+    fr.reserve(12 * f.cx.size());
+    for (const std::vector<double>* v : {&f.cx, &f.cy, &f.cz, &f.ax, &f.ay, &f.az})
+      fr.insert(fr.end(), v->begin(), v->end());
+    for (const std::vector<Eigen::Vector3d>* t : {&f.t1, &f.t2})
+      for (int a = 0; a < 3; ++a)
+        for (const Eigen::Vector3d& v : *t) fr.push_back(v[a]);
+    const cl_double geo[6] = {g.ball_radius, g.neck_radius, g.neck_length,
+                              std::max(g.ball_radius, g.neck_length + g.neck_radius),
+                              params.huber, params.max_distance};
+    std::size_t cap_fr = chain_fr_bytes_, cap_geo = 64;
+    grow(chain_fr_, fr.size() * sizeof(cl_double), cap_fr);
+    chain_fr_bytes_ = std::max(chain_fr_bytes_, fr.size() * sizeof(cl_double));
+    grow(chain_geo_, sizeof geo, cap_geo);
+    check(clEnqueueWriteBuffer(queue_.get(), chain_fr_.get(), CL_TRUE, 0,
+                               fr.size() * sizeof(cl_double), fr.data(), 0, nullptr, nullptr),
+          "upload chain");
+    check(clEnqueueWriteBuffer(queue_.get(), chain_geo_.get(), CL_TRUE, 0, sizeof geo, geo, 0,
+                               nullptr, nullptr),
+          "upload geometry");
+    const auto n = static_cast<cl_uint>(n_);
+    set_args(k_chain_point_.get(), x_.get(), y_.get(), z_.get(), n, chain_fr_.get(),
+             static_cast<cl_int>(count), chain_geo_.get(), static_cast<cl_int>(search ? 1 : 0),
+             chain_assoc_[read].get(), chain_assoc_[write].get(), chain_comp_.get(),
+             chain_val_.get());
+    run(k_chain_point_.get(), (n_ + chain_wg_ - 1) / chain_wg_ * chain_wg_, chain_wg_);
+    const std::size_t block = detail::kChainBlock;
+    const std::size_t blocks = (n_ + block - 1) / block;
+    const std::size_t items = blocks * static_cast<std::size_t>(count + 1);
+    std::size_t cap_d = chain_out_items_ * 20 * sizeof(cl_double),
+                cap_l = chain_out_items_ * sizeof(cl_long);
+    grow(chain_out_d_, items * 20 * sizeof(cl_double), cap_d);
+    grow(chain_out_l_, items * sizeof(cl_long), cap_l);
+    chain_out_items_ = std::max(chain_out_items_, items);
+    set_args(k_chain_sums_.get(), chain_comp_.get(), chain_val_.get(), n,
+             static_cast<cl_int>(count), static_cast<cl_uint>(block),
+             static_cast<cl_uint>(blocks), chain_out_d_.get(), chain_out_l_.get());
+    run(k_chain_sums_.get(), (items + chain_wg_ - 1) / chain_wg_ * chain_wg_, chain_wg_);
+    chain_d_.resize(items * 20);
+    chain_l_.resize(items);
+    check(clEnqueueReadBuffer(queue_.get(), chain_out_d_.get(), CL_TRUE, 0,
+                              items * 20 * sizeof(cl_double), chain_d_.data(), 0, nullptr, nullptr),
+          "read chain sums");
+    check(clEnqueueReadBuffer(queue_.get(), chain_out_l_.get(), CL_TRUE, 0,
+                              items * sizeof(cl_long), chain_l_.data(), 0, nullptr, nullptr),
+          "read chain counts");
+    collect_profile();
+    // The blocks added in order, each as the CPU sums one (chain_fit.cpp's pass).
+    const auto K = static_cast<std::size_t>(count);
+    for (std::size_t blk = 0; blk < blocks; ++blk) {
+      detail::ChainSums s(K);
+      for (std::size_t k = 0; k < K; ++k) {
+        const double* o = chain_d_.data() + 20 * (blk * (K + 1) + k);
+        int e = 0;
+        for (int c = 0; c < 5; ++c)
+          for (int r2 = c; r2 < 5; ++r2) s.H[k](r2, c) = o[e++];
+        for (int c = 0; c < 5; ++c) s.b[k][c] = o[15 + c];
+        s.count[k] = chain_l_[blk * (K + 1) + k];
+      }
+      const double* o = chain_d_.data() + 20 * (blk * (K + 1) + K);
+      s.robust = o[0];
+      s.sum2 = o[1];
+      s.inliers = static_cast<std::size_t>(chain_l_[blk * (K + 1) + K]);
+      total.add(s);
+    }
+    return total;
+  }
+
  private:
+  static constexpr std::size_t kChainValues = 8;  // chain.cl's VALS
   // Reallocates `buf` when `bytes` exceeds `capacity` (buffers only grow).
   void grow(Buffer& buf, std::size_t bytes, std::size_t capacity) {
     if (buf.get() != nullptr && bytes <= capacity) return;
@@ -441,6 +552,15 @@ class OpenCLBackend final : public Backend {
   Program program_;
   Kernel k_associate_, k_atomic_, k_groups_, k_partials_;
   std::size_t wg_ = 0;
+  // chain-fit's passes (chain.cl), when the device has double precision.
+  Program chain_program_;
+  Kernel k_chain_point_, k_chain_sums_;
+  std::size_t chain_wg_ = 0;
+  Buffer chain_assoc_[2], chain_comp_, chain_val_, chain_fr_, chain_geo_, chain_out_d_,
+      chain_out_l_;
+  std::size_t chain_points_ = 0, chain_fr_bytes_ = 0, chain_out_items_ = 0;
+  std::vector<cl_double> chain_d_;
+  std::vector<cl_long> chain_l_;
   Buffer x_, y_, z_, assoc_buf_, q_buf_, acc_buf_, partial_buf_;
   std::size_t cap_points_ = 0, q_bytes_ = 0, acc_bytes_ = 0, partial_bytes_ = 0;
   std::size_t n_ = 0;

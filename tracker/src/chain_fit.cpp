@@ -1,5 +1,7 @@
 #include "linksight/tracker/chain_fit.hpp"
 
+#include "chain_pass.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <omp.h>
@@ -14,13 +16,10 @@
 namespace linksight {
 namespace {
 
-// The chain at one linearization point: centres, axes and each axis's tangent basis, and
-// the components' centres and axes again as arrays for the per-point search.
-struct Frames {
-  Nodes centre;                           // count + 1 (the last is the tip node)
-  std::vector<Eigen::Vector3d> t1, t2;    // tangents of axis k, a rotation's directions
-  std::vector<double> cx, cy, cz, ax, ay, az;  // count each
-};
+using Frames = detail::ChainFrames;
+using Sums = detail::ChainSums;
+using detail::Mat5;
+using detail::Vec5;
 
 Frames frames_of(const ChainState& chain, const ComponentGeometry& g) {
   Frames f;
@@ -142,37 +141,6 @@ double huber(double r, double h) {
   return a <= h ? 0.5 * r * r : h * (a - 0.5 * h);
 }
 
-// A point's residual depends on its own component only, through u = [dc_k; dtheta_k]: the
-// move of ball k's centre and the tangent rotation of axis k (which moves a neck point by
-// s along the tangent). So a pass sums, per component, the 5x5 normal equations in u; the
-// chain rule to the chain's parameters is applied once per pass (assemble), not per point.
-using Mat5 = Eigen::Matrix<double, 5, 5>;
-using Vec5 = Eigen::Matrix<double, 5, 1>;
-
-// What one block of points contributes: per component the normal equations in u, the
-// inlier count, and the block's robust cost and inliers' sum of squared distances.
-struct Sums {
-  std::vector<Mat5> H;
-  std::vector<Vec5> b;
-  std::vector<std::int64_t> count;
-  double robust = 0;
-  double sum2 = 0;
-  std::size_t inliers = 0;
-
-  explicit Sums(std::size_t components)
-      : H(components, Mat5::Zero()), b(components, Vec5::Zero()), count(components, 0) {}
-  void add(const Sums& o) {
-    for (std::size_t k = 0; k < H.size(); ++k) {
-      H[k] += o.H[k];
-      b[k] += o.b[k];
-      count[k] += o.count[k];
-    }
-    robust += o.robust;
-    sum2 += o.sum2;
-    inliers += o.inliers;
-  }
-};
-
 // Which component each point is taken to lie on. A pass either searches (and records
 // what it found, when `assoc` is given) or, after a step too small to change it, reuses
 // the recorded one: a pass then costs one component's distance per point, not a search.
@@ -217,9 +185,7 @@ void accumulate(const PointsView& pts, std::size_t begin, std::size_t end, std::
   }
 }
 
-// Points are summed in fixed blocks, each block in order and the blocks in order, so the
-// sums are the same bits for any thread count (serial is one thread of the same code).
-constexpr std::size_t kBlock = 2048;
+constexpr std::size_t kBlock = detail::kChainBlock;
 
 // Every `stride`-th point of each block, from the block's first.
 Sums pass(const PointsView& pts, const Frames& f, const ChainState& chain,
@@ -398,7 +364,8 @@ ChainState slide_to_best(const PointsView& pts, const ChainState& start,
 
 ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
                          const ComponentGeometry& g, const ChainFitParams& params, int threads,
-                         const ChainState* shape, const ChainAnchor* anchor) {
+                         const ChainState* shape, const ChainAnchor* anchor,
+                         ChainPassDevice* device) {
   params.validate();
   g.validate();
   const int count = static_cast<int>(chain.axis.size());
@@ -427,8 +394,23 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   // The accepted chain's association, and a trial's own when it searches (kept only if
   // the trial is accepted, so a rejected trial leaves the association it was priced
   // against).
-  std::vector<std::int16_t> assoc(pts.size()), trial_assoc(pts.size());
-  Sums current = pass(pts, f, chain, g, params, threads, 1, {assoc.data(), false});
+  // On a device, the buffers are the device's: `accepted` names the accepted one.
+  std::vector<std::int16_t> assoc, trial_assoc;
+  if (device == nullptr) {
+    assoc.resize(pts.size());
+    trial_assoc.resize(pts.size());
+  }
+  int accepted = 0;
+  // A pass at `c`: reusing the accepted association, or searching into the trial's
+  // buffer (`first`: into the accepted one).
+  const auto run_pass = [&](const Frames& fr, const ChainState& c, bool reuse, bool first) {
+    if (device != nullptr)
+      return device->chain_pass(fr, g, params, !reuse, accepted, first ? accepted : 1 - accepted);
+    return pass(pts, fr, c, g, params, threads, 1,
+                reuse ? Association{assoc.data(), true}
+                      : Association{first ? assoc.data() : trial_assoc.data(), false});
+  };
+  Sums current = run_pass(f, chain, false, true);
   result.searches = 1;
   Nodes searched_at = f.centre;  // the nodes where the points were last searched
   ++result.passes;
@@ -469,8 +451,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
     for (std::size_t k = 0; k < after.size(); ++k)
       drift = std::max(drift, (after[k] - searched_at[k]).norm());
     const bool reuse = drift <= params.reassociate;
-    Sums ts = pass(pts, tf, trial, g, params, threads, 1,
-                   reuse ? Association{assoc.data(), true} : Association{trial_assoc.data(), false});
+    Sums ts = run_pass(tf, trial, reuse, false);
     ++result.passes;
     result.searches += !reuse;
     const double trial_cost = ts.robust + priors(trial, tf, false);
@@ -483,6 +464,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
       ++result.iterations;
       if (!reuse) {
         assoc.swap(trial_assoc);
+        accepted = 1 - accepted;
         searched_at = after;
       }
     } else {

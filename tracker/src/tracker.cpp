@@ -165,8 +165,8 @@ FrameResult Tracker::step(const Cloud& cloud, const Eigen::Isometry3d* X_CB) {
   }
 
   if (s.update->fits_frame()) {
-    const FrameFit fit = s.update->fit_frame(view, initialized_now, *s.init, X_CB, s.nodes,
-                                                  s.acc.count);
+    const FrameFit fit = s.update->fit_frame(view, initialized_now, *s.init, X_CB, *s.backend,
+                                                  s.nodes, s.acc.count);
     if (fit.reinit) {
       r.reinit = true;
       r.init_reason = InitReason::misfit;
@@ -221,7 +221,7 @@ FrameResult& Tracker::finish(FrameResult& r, std::chrono::steady_clock::time_poi
 
 FrameFit UpdatePolicy::fit_frame(const PointsView& /*points*/, bool /*restarted*/,
                                  const InitPolicy& /*init*/, const Eigen::Isometry3d* /*X_CB*/,
-                                 Nodes& /*nodes*/,
+                                 Backend& /*backend*/, Nodes& /*nodes*/,
                                  std::vector<std::int64_t>& /*counts*/) {
   throw std::logic_error("UpdatePolicy::fit_frame: this policy updates per iteration");
 }

@@ -16,6 +16,8 @@
 
 namespace linksight {
 
+class ChainPassDevice;  // chain-fit's passes on a back end's device (tracker-internal)
+
 enum class BackendKind { serial, openmp, opencl };
 
 /// "serial" / "openmp" / "opencl"; parse throws std::invalid_argument naming the value.
@@ -85,6 +87,9 @@ class Backend {
   [[nodiscard]] virtual std::span<const std::int32_t> association() = 0;
   /// Device time of the kernels since set_points [s]; 0 for CPU back ends.
   [[nodiscard]] virtual double device_seconds() const { return 0.0; }
+  /// Where chain-fit's passes run on this back end's device (OpenCL); nullptr: the fit
+  /// runs them on the host (serial, OpenMP, or a device without double precision).
+  [[nodiscard]] virtual ChainPassDevice* chain_pass_device() { return nullptr; }
 };
 
 /// `threads` is used by OpenMP only (0: one per core); `opencl` by the OpenCL back end.

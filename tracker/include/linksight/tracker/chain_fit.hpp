@@ -15,6 +15,8 @@
 
 namespace linksight {
 
+class ChainPassDevice;  // a back end's own passes (Backend::chain_pass_device)
+
 struct ChainFitParams {
   int max_iterations = 20;
   /// Huber loss: residuals beyond this weigh linearly, not quadratically (flying pixels,
@@ -111,11 +113,13 @@ struct SurfaceHit {
 /// fixed order, so the result is the same bits for any thread count. `shape`, when
 /// given, is a shape prior: each joint's bend is held near `shape`'s with σ
 /// params.bend_sigma (the previous frame's shape, moved with the link). `anchor`, when
-/// given, holds the first component where a known base puts it.
+/// given, holds the first component where a known base puts it. `device`, when given,
+/// runs the passes over the points instead of `threads` (it holds the same points: its
+/// set_chain_points was called with them) and gives the same bits.
 ChainFitResult fit_chain(const PointsView& points, ChainState& chain,
                          const ComponentGeometry& geometry, const ChainFitParams& params,
                          int threads = 1, const ChainState* shape = nullptr,
-                         const ChainAnchor* anchor = nullptr);
+                         const ChainAnchor* anchor = nullptr, ChainPassDevice* device = nullptr);
 
 /// The fit's robust cost (Huber, points beyond max_distance counted at it) of `chain` over
 /// every `stride`-th point: to choose between starts cheaply.

@@ -51,9 +51,10 @@ class UpdatePolicy {
   /// initialization's when `restarted` (first frame, re-initialization: nothing earlier
   /// frames said holds). `counts`: the points each node accounts for (nodes.size()).
   /// The policy may re-initialize from `init` on its own evidence. `X_CB`: the base's pose
-  /// this frame when known (TrackerParams::base_prior has its σ), else nullptr.
+  /// this frame when known (TrackerParams::base_prior has its σ), else nullptr. `backend`:
+  /// the tracker's, whose device may run the passes (Backend::chain_pass_device).
   virtual FrameFit fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
-                             const Eigen::Isometry3d* X_CB, Nodes& nodes,
+                             const Eigen::Isometry3d* X_CB, Backend& backend, Nodes& nodes,
                              std::vector<std::int64_t>& counts);
 };
 
