@@ -256,7 +256,8 @@ std::unique_ptr<UpdatePolicy> make_update_chain_fit(const TrackerParams& params)
                                 std::to_string(params.geometry.count + 1) +
                                 "): a node per ball and the tip");
   // The fit's passes run on the OpenMP back end's threads (the same bits as serial, see
-  // fit_chain); serial and OpenCL fit on one host thread.
+  // fit_chain), on the OpenCL back end's device (Backend::chain_pass_device; the same bits
+  // again), and on one host thread otherwise, as do the screens and initializations.
   const int threads = params.backend == BackendKind::openmp ? params.threads : 1;
   return std::make_unique<UpdateChainFit>(params.geometry, params.policy.chain_fit,
                                           params.base_prior, threads);
