@@ -5,6 +5,7 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -139,6 +140,7 @@ int run_track(const TrackOptions& o) {
          "init_reason,lost_reason,device_ms,file\n";
 
   Tracker tracker(p);
+  std::vector<float> depth_m;  // the frame's depth image in metres, when it is one
   std::size_t lost = 0, reinits = 0;
   double time_sum = 0, sdf_sum = 0;
   std::size_t sdf_n = 0;
@@ -152,8 +154,19 @@ int run_track(const TrackOptions& o) {
         it = intrinsics_cache.emplace(kp, io::read_intrinsics(kp)).first;
       k = &it->second;
     }
-    const Cloud cloud = io::load_frame(path, k, depth);
-    const FrameResult r = tracker.step(cloud, base_poses.empty() ? nullptr : &base_poses[f]);
+    io::DepthImage image;
+    const Cloud cloud = io::load_frame(path, k, depth, &image);
+    // A depth PNG's whole image (not only the cloud cut from it) is chain-fit's evidence
+    // of free space, for a pinhole camera (the fit projects without distortion).
+    std::optional<DepthView> view;
+    if (k != nullptr && k->model == io::Distortion::none && !image.data.empty()) {
+      depth_m.resize(image.data.size());
+      for (std::size_t i = 0; i < image.data.size(); ++i)
+        depth_m[i] = static_cast<float>(image.data[i] * k->depth_scale);
+      view = DepthView{image.width, image.height, depth_m, k->fx, k->fy, k->cx, k->cy};
+    }
+    const FrameResult r = tracker.step(cloud, base_poses.empty() ? nullptr : &base_poses[f],
+                                       view ? &*view : nullptr);
     if (r.n_out_of_range > 0 && !r.lost) {
       std::cerr << "linksight: " << path.string() << ": dropped " << r.n_out_of_range
                 << " points beyond " << kMaxCoordinate << " m\n";

@@ -225,7 +225,8 @@ void assemble(const Sums& s, const Frames& f, double pitch, Eigen::MatrixXd& H,
   b.setZero();
   Eigen::Matrix<double, 5, Eigen::Dynamic> P(5, n);
   for (std::size_t k = 0; k < s.H.size(); ++k) {
-    if (s.count[k] == 0) continue;
+    // Nothing to add from a component without points or free-space rays.
+    if (s.count[k] == 0 && s.H[k].isZero(0.0)) continue;
     P.setZero();
     P.block<3, 3>(0, 0).setIdentity();
     for (std::size_t j = 0; j < k; ++j) {
@@ -284,6 +285,66 @@ double anchor_prior(const ChainState& chain, const Frames& f, const ChainAnchor&
   H->block<2, 2>(3, 3).noalias() += wa * J.transpose() * J;
   b->segment<2>(3).noalias() -= wa * J.transpose() * ra;
   return cost;
+}
+
+// Free space (issue 17, part 3): a component the points hardly show (fewer inliers than
+// free_space_below) may be hidden behind something, or it may not be where the chain puts
+// it. The depth image tells which: a pixel whose ray passes through the ball and sees a
+// surface more than free_space_margin behind it shows free space where the ball would be.
+// Each such ray, sampled over the ball's image disc, is a residual rho - r < 0 (rho: the
+// ray's distance from the centre; zero once the ball has left the ray), with the Jacobian
+// of a ball point whose normal points from the centre to the ray; a pixel with a nearer
+// surface (an occluder) or none says nothing. Added to `s` (H, b, the robust cost; not to
+// the inlier counts) per component; returns the rays.
+int add_free_space(Sums& s, const Frames& f, const ComponentGeometry& g,
+                   const ChainFitParams& params, const DepthView& depth) {
+  int rays = 0;
+  const double r = g.ball_radius;
+  for (std::size_t k = 0; k < s.count.size(); ++k) {
+    if (s.count[k] >= params.free_space_below) continue;
+    const Eigen::Vector3d& c = f.centre[k];
+    if (!(c.z() > r)) continue;  // at or behind the camera: no disc
+    const double u0 = depth.fx * c.x() / c.z() + depth.cx;
+    const double v0 = depth.fy * c.y() / c.z() + depth.cy;
+    // The disc's bounding box, sampled on a grid of at most about 13 x 13 pixels.
+    const double reach_px = std::max(depth.fx, depth.fy) * r / (c.z() - r) + 1;
+    if (!(reach_px < 1e4)) continue;
+    const int step = std::max(1, static_cast<int>(reach_px / 6));
+    const int u_lo = std::max(0, static_cast<int>(std::floor(u0 - reach_px)));
+    const int u_hi = std::min(depth.width - 1, static_cast<int>(std::ceil(u0 + reach_px)));
+    const int v_lo = std::max(0, static_cast<int>(std::floor(v0 - reach_px)));
+    const int v_hi = std::min(depth.height - 1, static_cast<int>(std::ceil(v0 + reach_px)));
+    for (int v = v_lo; v <= v_hi; v += step) {
+      for (int u = u_lo; u <= u_hi; u += step) {
+        const float z_obs =
+            depth.depth_m[static_cast<std::size_t>(v) * static_cast<std::size_t>(depth.width) +
+                          static_cast<std::size_t>(u)];
+        if (!(z_obs > 0) || !std::isfinite(z_obs)) continue;
+        const Eigen::Vector3d ray((u - depth.cx) / depth.fx, (v - depth.cy) / depth.fy, 1.0);
+        const Eigen::Vector3d d = ray.normalized();
+        const double t_c = c.dot(d);
+        const Eigen::Vector3d q = t_c * d;  // the ray's point nearest the centre
+        const Eigen::Vector3d e = q - c;
+        const double rho = e.norm();
+        if (!(rho < r) || rho == 0.0) continue;
+        const double t_out = t_c + std::sqrt(r * r - rho * rho);
+        const double t_obs = static_cast<double>(z_obs) / d.z();
+        if (!(t_obs > t_out + params.free_space_margin)) continue;
+        const double res = rho - r;
+        s.robust += huber(res, params.huber);
+        const double w = std::abs(res) <= params.huber ? 1.0 : params.huber / std::abs(res);
+        const Eigen::Vector3d n = e / rho;
+        Vec5 J;
+        J << -n, 0.0, 0.0;
+        Mat5& H = s.H[k];
+        for (int col = 0; col < 5; ++col)
+          for (int row = col; row < 5; ++row) H(row, col) += w * J[row] * J[col];
+        s.b[k] -= w * res * J;
+        ++rays;
+      }
+    }
+  }
+  return rays;
 }
 
 ChainState stepped(const ChainState& chain, const Frames& f, const Eigen::VectorXd& dx) {
@@ -365,8 +426,16 @@ ChainState slide_to_best(const PointsView& pts, const ChainState& start,
 ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
                          const ComponentGeometry& g, const ChainFitParams& params, int threads,
                          const ChainState* shape, const ChainAnchor* anchor,
-                         ChainPassDevice* device) {
+                         ChainPassDevice* device, const DepthView* depth) {
   params.validate();
+  if (depth != nullptr &&
+      (depth->width <= 0 || depth->height <= 0 ||
+       depth->depth_m.size() !=
+           static_cast<std::size_t>(depth->width) * static_cast<std::size_t>(depth->height) ||
+       !(depth->fx > 0) || !(depth->fy > 0) || !std::isfinite(depth->fx) ||
+       !std::isfinite(depth->fy) || !std::isfinite(depth->cx) || !std::isfinite(depth->cy)))
+    throw std::invalid_argument(
+        "fit_chain: the depth image needs width x height values and finite focal lengths > 0");
   g.validate();
   const int count = static_cast<int>(chain.axis.size());
   if (count != g.count)
@@ -403,14 +472,20 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   int accepted = 0;
   // A pass at `c`: reusing the accepted association, or searching into the trial's
   // buffer (`first`: into the accepted one).
+  // The free-space rays of the last pass run (depth given).
+  int rays = 0;
   const auto run_pass = [&](const Frames& fr, const ChainState& c, bool reuse, bool first) {
-    if (device != nullptr)
-      return device->chain_pass(fr, g, params, !reuse, accepted, first ? accepted : 1 - accepted);
-    return pass(pts, fr, c, g, params, threads, 1,
-                reuse ? Association{assoc.data(), true}
-                      : Association{first ? assoc.data() : trial_assoc.data(), false});
+    Sums sums = device != nullptr
+                    ? device->chain_pass(fr, g, params, !reuse, accepted,
+                                         first ? accepted : 1 - accepted)
+                    : pass(pts, fr, c, g, params, threads, 1,
+                           reuse ? Association{assoc.data(), true}
+                                 : Association{first ? assoc.data() : trial_assoc.data(), false});
+    if (depth != nullptr) rays = add_free_space(sums, fr, g, params, *depth);
+    return sums;
   };
   Sums current = run_pass(f, chain, false, true);
+  int current_rays = rays;
   result.searches = 1;
   Nodes searched_at = f.centre;  // the nodes where the points were last searched
   ++result.passes;
@@ -459,6 +534,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
       chain = std::move(trial);
       f = std::move(tf);
       current = std::move(ts);
+      current_rays = rays;
       current_cost = normal_equations(current, chain, f);
       lambda = std::max(lambda / 10, 1e-9);
       ++result.iterations;
@@ -475,6 +551,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   result.inliers = current.inliers;
   result.rms = current.inliers ? std::sqrt(current.sum2 / static_cast<double>(current.inliers)) : 0.0;
   result.cost = current.robust;
+  result.free_space_rays = current_rays;
   result.anchor_cost = anchor ? anchor_prior(chain, frames_of(chain, g), *anchor,
                                              params.huber, nullptr, nullptr)
                               : 0.0;

@@ -97,7 +97,18 @@ std::span<const std::int32_t> Tracker::last_association() const {
   return state_->backend->association();
 }
 
-FrameResult Tracker::step(const Cloud& cloud, const Eigen::Isometry3d* X_CB) {
+FrameResult Tracker::step(const Cloud& cloud, const Eigen::Isometry3d* X_CB,
+                          const DepthView* depth) {
+  if (depth != nullptr &&
+      (depth->width <= 0 || depth->height <= 0 ||
+       depth->depth_m.size() !=
+           static_cast<std::size_t>(depth->width) * static_cast<std::size_t>(depth->height) ||
+       !(depth->fx > 0 && depth->fy > 0 && std::isfinite(depth->fx) && std::isfinite(depth->fy) &&
+         std::isfinite(depth->cx) && std::isfinite(depth->cy))))
+    throw std::invalid_argument(
+        "Tracker::step: the depth image needs width x height values (" +
+        std::to_string(depth->width) + " x " + std::to_string(depth->height) + ", got " +
+        std::to_string(depth->depth_m.size()) + ") and finite focal lengths > 0");
   if (X_CB != nullptr) {
     const Eigen::Matrix3d R = X_CB->linear();
     if (!X_CB->matrix().allFinite() ||
@@ -165,7 +176,8 @@ FrameResult Tracker::step(const Cloud& cloud, const Eigen::Isometry3d* X_CB) {
   }
 
   if (s.update->fits_frame()) {
-    const FrameFit fit = s.update->fit_frame(view, initialized_now, *s.init, X_CB, *s.backend,
+    const FrameFit fit = s.update->fit_frame(view, initialized_now, *s.init,
+                                                  FrameExtras{X_CB, depth}, *s.backend,
                                                   s.nodes, s.acc.count);
     if (fit.reinit) {
       r.reinit = true;
@@ -220,7 +232,7 @@ FrameResult& Tracker::finish(FrameResult& r, std::chrono::steady_clock::time_poi
 }
 
 FrameFit UpdatePolicy::fit_frame(const PointsView& /*points*/, bool /*restarted*/,
-                                 const InitPolicy& /*init*/, const Eigen::Isometry3d* /*X_CB*/,
+                                 const InitPolicy& /*init*/, const FrameExtras& /*extras*/,
                                  Backend& /*backend*/, Nodes& /*nodes*/,
                                  std::vector<std::int64_t>& /*counts*/) {
   throw std::logic_error("UpdatePolicy::fit_frame: this policy updates per iteration");

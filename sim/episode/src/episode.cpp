@@ -67,6 +67,7 @@ struct Episode::Impl {
   std::vector<int> whole_frames;  // sorted
   DepthFrame image;
   Cloud cloud;
+  std::optional<DepthView> depth;  // over `image`
   EpisodeFrame out;
   EpisodeTimes times;
   // The next frame's physics, stepping on its own thread while this frame is rendered
@@ -172,13 +173,20 @@ const EpisodeFrame& Episode::step_frame() {
   m.times.extract = seconds_since(t0);
   o.image = &m.image;
   o.cloud = &m.cloud;
+  // The depth image beside the cloud, for chain-fit's free-space evidence (a pinhole
+  // camera's: the tracker projects without distortion).
+  const io::Intrinsics& K = m.scene.camera.intrinsics;
+  m.depth.reset();
+  if (K.model == io::Distortion::none && m.image.width > 0)
+    m.depth = DepthView{m.image.width, m.image.height, m.image.depth_m, K.fx, K.fy, K.cx, K.cy};
 
   o.results.resize(m.trackers.size());
   o.scores.resize(m.trackers.size());
   double scoring = 0;
   for (std::size_t k = 0; k < m.trackers.size(); ++k) {
     // Its own time is in FrameResult::time_s.
-    o.results[k] = m.trackers[k].step(m.cloud, o.base_prior_C ? &*o.base_prior_C : nullptr);
+    o.results[k] = m.trackers[k].step(m.cloud, o.base_prior_C ? &*o.base_prior_C : nullptr,
+                                      m.depth ? &*m.depth : nullptr);
     t0 = std::chrono::steady_clock::now();
     const FrameResult& r = o.results[k];
     o.scores[k] = score_frame(r.lost ? Nodes{} : r.nodes, o.truth_C);

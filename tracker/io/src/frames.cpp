@@ -96,15 +96,18 @@ fs::path find_intrinsics(const fs::path& frame, const std::optional<fs::path>& e
 }
 
 Cloud load_frame(const fs::path& frame, const Intrinsics* intrinsics,
-                 const DepthToCloudOptions& options) {
+                 const DepthToCloudOptions& options, DepthImage* image) {
+  if (image != nullptr) *image = DepthImage{};
   const std::string e = lower_ext(frame);
   if (e == ".ply") return read_ply(frame);
   if (e != ".png")
     throw InputError(frame.string() + ": unsupported frame type (expected .ply or .png)");
   if (intrinsics == nullptr) throw InputError(frame.string() + ": depth PNG needs intrinsics");
-  const DepthImage img = read_depth_png(frame);
+  DepthImage img = read_depth_png(frame);
   try {
-    return depth_to_cloud(img, *intrinsics, options);
+    Cloud cloud = depth_to_cloud(img, *intrinsics, options);
+    if (image != nullptr) *image = std::move(img);
+    return cloud;
   } catch (const std::invalid_argument& ex) {
     throw InputError(frame.string() + ": " + ex.what());
   }

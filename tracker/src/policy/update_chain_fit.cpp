@@ -42,9 +42,11 @@ class UpdateChainFit final : public UpdatePolicy {
   [[nodiscard]] bool fits_frame() const override { return true; }
 
   FrameFit fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
-                     const Eigen::Isometry3d* X_CB, Backend& backend, Nodes& nodes,
+                     const FrameExtras& extras, Backend& backend, Nodes& nodes,
                      std::vector<std::int64_t>& counts) override {
     passes_ = 0;
+    const Eigen::Isometry3d* X_CB = extras.X_CB;
+    depth_ = extras.depth;
     // The fits' passes on the back end's device, when it has one (the same bits).
     device_ = backend.chain_pass_device();
     if (device_ != nullptr) device_->set_chain_points(points);
@@ -127,7 +129,8 @@ class UpdateChainFit final : public UpdatePolicy {
     const ChainAnchor* a = anchor ? &*anchor : nullptr;
     if (!fresh) {
       const ChainState shape = f.chain;
-      f.result = fit_chain(points, f.chain, geometry_, params_, threads_, &shape, a, device_);
+      f.result = fit_chain(points, f.chain, geometry_, params_, threads_, &shape, a, device_,
+                           depth_);
       passes_ += f.result.passes;
       return f;
     }
@@ -141,7 +144,8 @@ class UpdateChainFit final : public UpdatePolicy {
     std::fill(straight.axis.begin(), straight.axis.end(), Eigen::Vector3d::UnitZ());
     ChainFitParams loose = params_;
     loose.bend_sigma = params_.straight_sigma;
-    f.result = fit_chain(points, f.chain, geometry_, loose, threads_, &straight, a, device_);
+    f.result = fit_chain(points, f.chain, geometry_, loose, threads_, &straight, a, device_,
+                         depth_);
     passes_ += f.result.passes;
     return f;
   }
@@ -245,6 +249,7 @@ class UpdateChainFit final : public UpdatePolicy {
   std::size_t last_inliers_ = 0;        // the last fit's inliers, for the loss test
   int passes_ = 0;                      // this frame's passes over the points
   ChainPassDevice* device_ = nullptr;   // this frame's: where the fits' passes run
+  const DepthView* depth_ = nullptr;    // this frame's depth image, or none
 };
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "linksight/tracker/chain_state.hpp"
+#include "linksight/tracker/cloud.hpp"
 #include "linksight/tracker/fields.hpp"
 #include "linksight/tracker/geometry.hpp"
 #include "linksight/tracker/init.hpp"
@@ -46,6 +47,12 @@ struct ChainFitParams {
   double misfit_inliers = 0.5;
   double misfit_rms = 0.002;  ///< [m]
   double reinit_gain = 0.5;
+  /// Free space (with a depth image): a component with fewer inliers than
+  /// free_space_below whose place a pixel's ray passes through to a surface more than
+  /// free_space_margin behind it (the camera sees through where it would be) is pushed out
+  /// of that ray, each such ray weighing as one point.
+  int free_space_below = 10;
+  double free_space_margin = 0.005;  ///< [m]
   /// The largest bend between neighbouring components [rad]: the chain's cone limit, not
   /// a key of this block (a scene sets it from chain.cone_limit_deg).
   double cone_limit = 25.0 * 3.14159265358979323846 / 180.0;
@@ -62,6 +69,8 @@ struct ChainFitParams {
     ar("misfit_inliers", misfit_inliers, fields::in(0, 1));
     ar("misfit_rms_m", misfit_rms, fields::in(1e-4, 1));
     ar("reinit_gain", reinit_gain, fields::in(0, 1));
+    ar("free_space_below", free_space_below, fields::in(0, 1000000));
+    ar("free_space_margin_m", free_space_margin, fields::in(0, 1));
   }
   /// Throws fields::FieldError naming the key (cone_limit as the chain's cone_limit_deg).
   void validate() const;
@@ -89,8 +98,9 @@ struct ChainFitResult {
   /// final step within the tolerance, taken unchecked, is not in them.
   std::size_t inliers = 0;
   double rms = 0.0;
-  double cost = 0.0;        ///< robust cost of the points (without the shape prior)
+  double cost = 0.0;        ///< robust cost of the points and free-space rays (no priors)
   double anchor_cost = 0.0; ///< the anchor's cost (0 without one), in the cost's units
+  int free_space_rays = 0;  ///< rays through a few-point component's place, at the end
   std::vector<std::int64_t> counts;  ///< inliers nearest each component (count entries)
 };
 
@@ -115,11 +125,13 @@ struct SurfaceHit {
 /// params.bend_sigma (the previous frame's shape, moved with the link). `anchor`, when
 /// given, holds the first component where a known base puts it. `device`, when given,
 /// runs the passes over the points instead of `threads` (it holds the same points: its
-/// set_chain_points was called with them) and gives the same bits.
+/// set_chain_points was called with them) and gives the same bits. `depth`, when given,
+/// adds the free-space evidence (ChainFitParams::free_space_below).
 ChainFitResult fit_chain(const PointsView& points, ChainState& chain,
                          const ComponentGeometry& geometry, const ChainFitParams& params,
                          int threads = 1, const ChainState* shape = nullptr,
-                         const ChainAnchor* anchor = nullptr, ChainPassDevice* device = nullptr);
+                         const ChainAnchor* anchor = nullptr, ChainPassDevice* device = nullptr,
+                         const DepthView* depth = nullptr);
 
 /// The fit's robust cost (Huber, points beyond max_distance counted at it) of `chain` over
 /// every `stride`-th point: to choose between starts cheaply.

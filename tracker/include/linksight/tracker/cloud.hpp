@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <span>
 #include <vector>
 
 namespace linksight {
@@ -26,6 +27,15 @@ struct Cloud {
   [[nodiscard]] Eigen::Vector3d point(std::size_t i) const {
     return {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]};
   }
+};
+
+/// The frame's depth image beside the link's cloud (issue 17, part 3): what the camera saw
+/// along every pixel's ray, nearer surfaces and free space alike. Pinhole intrinsics, pixel
+/// centres at integers (u right, v down), as io::Intrinsics with no distortion.
+struct DepthView {
+  int width = 0, height = 0;
+  std::span<const float> depth_m;  ///< row-major, along the optical axis [m]; <= 0 or not finite: none
+  double fx = 0, fy = 0, cx = 0, cy = 0;  ///< [px]
 };
 
 }  // namespace linksight

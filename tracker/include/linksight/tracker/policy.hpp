@@ -14,6 +14,7 @@
 
 #include "linksight/tracker/backend.hpp"
 #include "linksight/tracker/chain_fit.hpp"
+#include "linksight/tracker/cloud.hpp"
 #include "linksight/tracker/init.hpp"
 #include "linksight/tracker/model.hpp"
 
@@ -28,6 +29,12 @@ class InitPolicy {
   virtual ~InitPolicy() = default;
   [[nodiscard]] virtual Nodes init(const PointsView& points, int n_nodes,
                                    const Nodes* previous) const = 0;
+};
+
+/// What a frame may bring beside its points (Tracker::step), for a whole-frame fit.
+struct FrameExtras {
+  const Eigen::Isometry3d* X_CB = nullptr;  ///< the base's pose (BasePriorParams), or none
+  const DepthView* depth = nullptr;         ///< the frame's depth image, or none
 };
 
 /// What a whole-frame fit (UpdatePolicy::fit_frame) did.
@@ -50,11 +57,11 @@ class UpdatePolicy {
   /// The frame's nodes from the previous frame's (`nodes`, updated in place), or from an
   /// initialization's when `restarted` (first frame, re-initialization: nothing earlier
   /// frames said holds). `counts`: the points each node accounts for (nodes.size()).
-  /// The policy may re-initialize from `init` on its own evidence. `X_CB`: the base's pose
-  /// this frame when known (TrackerParams::base_prior has its σ), else nullptr. `backend`:
+  /// The policy may re-initialize from `init` on its own evidence. `extras`: the base's
+  /// pose (TrackerParams::base_prior has its σ) and the depth image, when known. `backend`:
   /// the tracker's, whose device may run the passes (Backend::chain_pass_device).
   virtual FrameFit fit_frame(const PointsView& points, bool restarted, const InitPolicy& init,
-                             const Eigen::Isometry3d* X_CB, Backend& backend, Nodes& nodes,
+                             const FrameExtras& extras, Backend& backend, Nodes& nodes,
                              std::vector<std::int64_t>& counts);
 };
 

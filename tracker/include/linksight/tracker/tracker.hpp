@@ -127,9 +127,12 @@ class Tracker {
 
   /// Runs Algorithm 1 on one cloud with the mode's policies. Never throws for bad data: it
   /// reports `lost`. `X_CB`: the base's pose in the camera frame this frame, when known
-  /// (BasePriorParams; a mode whose update does not fit the chain ignores it); throws
-  /// std::invalid_argument for a pose that is not finite or not rigid.
-  FrameResult step(const Cloud& cloud, const Eigen::Isometry3d* X_CB = nullptr);
+  /// (BasePriorParams); `depth`: the frame's depth image, when known (free-space evidence,
+  /// ChainFitParams::free_space_below). A mode whose update does not fit the chain ignores
+  /// both. Throws std::invalid_argument for a pose that is not finite or not rigid, or a
+  /// depth image whose size or intrinsics do not hold together.
+  FrameResult step(const Cloud& cloud, const Eigen::Isometry3d* X_CB = nullptr,
+                   const DepthView* depth = nullptr);
   /// Forgets the previous output; the next frame initializes from scratch.
   void reset();
 

@@ -28,9 +28,11 @@ namespace linksight::io {
 [[nodiscard]] std::filesystem::path find_intrinsics(
     const std::filesystem::path& frame, const std::optional<std::filesystem::path>& explicit_path);
 
-/// Loads one frame as a cloud: PLY directly, PNG through the intrinsics.
+/// Loads one frame as a cloud: PLY directly, PNG through the intrinsics (and, when
+/// `image` is given, the PNG's depth image there; a PLY leaves it empty).
 /// Throws InputError naming the file.
 [[nodiscard]] Cloud load_frame(const std::filesystem::path& frame, const Intrinsics* intrinsics,
-                               const DepthToCloudOptions& options = {});
+                               const DepthToCloudOptions& options = {},
+                               DepthImage* image = nullptr);
 
 }  // namespace linksight::io
