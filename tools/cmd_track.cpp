@@ -45,6 +45,7 @@ struct TrackOptions {
   std::vector<double> crop;
   std::string lost_frames = "error";
   std::string base_prior;
+  bool base_prior_sigma_given = false;  // either sigma flag on the command line
   double base_prior_sigma_m = BasePriorParams{}.sigma_m;
   double base_prior_sigma_deg = BasePriorParams{}.sigma_rad * 180 / 3.14159265358979323846;
   std::uint64_t seed = 0;
@@ -93,6 +94,15 @@ int run_track(const TrackOptions& o) {
   p.base_prior.enabled = !o.base_prior.empty();
   p.base_prior.sigma_m = o.base_prior_sigma_m;
   p.base_prior.sigma_rad = o.base_prior_sigma_deg * 3.14159265358979323846 / 180;
+  if (o.base_prior_sigma_given && o.base_prior.empty())
+    throw std::invalid_argument("--base-prior-sigma-m/--base-prior-sigma-deg: need --base-prior");
+  try {
+    p.base_prior.validate();
+  } catch (const fields::FieldError& e) {  // name the flag that set it
+    throw std::invalid_argument("--base-prior-" +
+                                std::string(e.key() == "sigma_m" ? "sigma-m" : "sigma-deg") +
+                                " " + e.value() + ": " + e.rule());
+  }
   p.validate();
   if (o.lost_frames != "error" && o.lost_frames != "keep") {
     throw std::invalid_argument("--lost-frames: unknown value '" + o.lost_frames +
@@ -286,15 +296,19 @@ Runner add_track(CLI::App& app) {
                  "chain-fit: the base's pose per frame, a CSV frame,x_m,y_m,z_m,qw,qx,qy,qz "
                  "(X_CB, camera frame; frame = index in the input's order; as render's "
                  "base_pose.csv)");
-  app.add_option("--base-prior-sigma-m", o->base_prior_sigma_m,
-                 "with --base-prior: the pose's position sigma [m]")
-      ->capture_default_str();
-  app.add_option("--base-prior-sigma-deg", o->base_prior_sigma_deg,
-                 "with --base-prior: the pose's orientation sigma [deg]")
-      ->capture_default_str();
+  CLI::Option* sigma_m = app.add_option("--base-prior-sigma-m", o->base_prior_sigma_m,
+                                        "with --base-prior: the pose's position sigma [m]")
+                             ->capture_default_str();
+  CLI::Option* sigma_deg =
+      app.add_option("--base-prior-sigma-deg", o->base_prior_sigma_deg,
+                     "with --base-prior: the pose's orientation sigma [deg]")
+          ->capture_default_str();
   app.add_option("--out", o->out, "output directory")->capture_default_str();
   app.add_flag("--quiet", o->quiet, "print nothing on success");
-  return [o] { return run_track(*o); };
+  return [o, sigma_m, sigma_deg] {
+    o->base_prior_sigma_given = sigma_m->count() + sigma_deg->count() > 0;
+    return run_track(*o);
+  };
 }
 
 }  // namespace linksight::cli

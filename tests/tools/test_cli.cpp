@@ -403,6 +403,21 @@ TEST_F(Cli, RenderWritesARecordingThatTrackReplays) {
                                (dir / "track_prior").string(), dir);
   ASSERT_EQ(prior.code, 0) << prior.err;
   EXPECT_EQ(lines_of(dir / "track_prior" / "frames.csv").size(), 4u);
+  // Read as X_CB, not X_BC: ball 0 lies at the pose's origin in every frame.
+  const auto nodes = lines_of(dir / "track_prior" / "nodes.csv");
+  for (int f = 0; f < 3; ++f) {
+    const std::string& row = nodes[1 + static_cast<std::size_t>(12 * f)];  // node 0
+    int frame = -1, node = -1;
+    double px = 0, py = 0, pz = 0;
+    ASSERT_EQ(std::sscanf(row.c_str(), "%d,%d,%lf,%lf,%lf", &frame, &node, &px, &py, &pz), 5)
+        << row;
+    ASSERT_EQ(frame, f);
+    ASSERT_EQ(node, 0);
+    EXPECT_LT(
+        (Eigen::Vector3d(px, py, pz) - base[static_cast<std::size_t>(f)].translation()).norm(),
+        2e-3)
+        << row;
+  }
   const std::string summary = slurp_text(dir / "track_prior" / "summary.json");
   EXPECT_NE(summary.find("\"base_prior_file\": \"" + (out / "base_pose.csv").string()),
             std::string::npos)
@@ -441,7 +456,11 @@ TEST_F(Cli, BasePriorCsvBadInput) {
   std::ofstream(csv) << header << row0 << "1,-0.2,0,0.6\n" << row2;
   expect_bad_input(args, "base.csv:3", "4 fields, expected 8");
   std::ofstream(csv) << header << row0 << row1 << row2;
-  expect_bad_input(args + " --base-prior-sigma-m 0", "base_prior.sigma_m", "must be in");
+  expect_bad_input(args + " --base-prior-sigma-m 0", "--base-prior-sigma-m 0", "must be in");
+  expect_bad_input(args + " --base-prior-sigma-deg 100", "--base-prior-sigma-deg 100",
+                   "must be in");
+  expect_bad_input("--input " + seq.string() + " --base-prior-sigma-m 0.002",
+                   "--base-prior-sigma-m", "need --base-prior");
   expect_bad_input("--input " + seq.string() + " --base-prior " + (dir / "none.csv").string(),
                    "none.csv", "cannot be read");
 }

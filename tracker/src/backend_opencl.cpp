@@ -228,11 +228,11 @@ Selected select_device(const OpenCLOptions& options) {
 }
 
 Program build(cl_context ctx, cl_device_id dev, const char* source,
-              const std::string& device_name) {
+              const std::string& device_name, const std::string& options = "-cl-std=CL1.2") {
   cl_int err = CL_SUCCESS;
   Program program(clCreateProgramWithSource(ctx, 1, &source, nullptr, &err));
   check(err, "clCreateProgramWithSource");
-  err = clBuildProgram(program.get(), 1, &dev, "-cl-std=CL1.2", nullptr, nullptr);
+  err = clBuildProgram(program.get(), 1, &dev, options.c_str(), nullptr, nullptr);
   if (err != CL_SUCCESS) {
     std::size_t size = 0;
     clGetProgramBuildInfo(program.get(), dev, CL_PROGRAM_BUILD_LOG, 0, nullptr, &size);
@@ -293,21 +293,17 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
                                   ": device '" + info_.name + "' allows at most " +
                                   std::to_string(limit));
     }
-    // chain-fit's passes need double precision; without it they run on the host.
+    // chain-fit's passes need double precision; without it, or should its kernels not
+    // build here, they run on the host (chain_pass_device() is null) and paper mode's
+    // kernels are unaffected.
     if (info_.fp64) {
-      chain_program_ = build(context_.get(), device_, detail::kChainKernelSource, info_.name);
-      std::size_t chain_limit = limit;
-      for (auto [kernel, name] :
-           {std::pair{&k_chain_point_, "chain_point"}, std::pair{&k_chain_sums_, "chain_sums"}}) {
-        *kernel = Kernel(clCreateKernel(chain_program_.get(), name, &err));
-        check(err, "clCreateKernel");
-        std::size_t kernel_max = 0;
-        check(clGetKernelWorkGroupInfo(kernel->get(), device_, CL_KERNEL_WORK_GROUP_SIZE,
-                                       sizeof kernel_max, &kernel_max, nullptr),
-              "clGetKernelWorkGroupInfo");
-        chain_limit = std::min(chain_limit, kernel_max);
+      try {
+        build_chain_kernels(limit);
+      } catch (const std::runtime_error&) {  // the host fits
+        k_chain_point_.reset();
+        k_chain_sums_.reset();
+        chain_program_.reset();
       }
-      chain_wg_ = std::min(wg_, chain_limit);
     }
   }
 
@@ -414,7 +410,9 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
 
   double device_seconds() const override { return device_seconds_; }
 
-  ChainPassDevice* chain_pass_device() override { return info_.fp64 ? this : nullptr; }
+  ChainPassDevice* chain_pass_device() override {
+    return chain_program_.get() != nullptr ? this : nullptr;
+  }
 
   void set_chain_points(const PointsView& p) override {
     set_points(p);
@@ -437,6 +435,9 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
     if (n_ == 0 || count == 0) return total;
     if (read < 0 || read > 1 || write < 0 || write > 1)
       throw std::invalid_argument("OpenCL chain pass: association buffers are 0 and 1");
+    if (n_ > chain_points_)
+      throw std::logic_error("OpenCL chain pass: the points were set by set_points, not "
+                             "set_chain_points");
     // The frames, one array after another (chain.cl's CX..T2Z), and the geometry.
     std::vector<cl_double> fr;
     fr.reserve(12 * f.cx.size());
@@ -446,8 +447,7 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
       for (int a = 0; a < 3; ++a)
         for (const Eigen::Vector3d& v : *t) fr.push_back(v[a]);
     const cl_double geo[6] = {g.ball_radius, g.neck_radius, g.neck_length,
-                              std::max(g.ball_radius, g.neck_length + g.neck_radius),
-                              params.huber, params.max_distance};
+                              detail::chain_search_reach(g), params.huber, params.max_distance};
     std::size_t cap_fr = chain_fr_bytes_, cap_geo = 64;
     grow(chain_fr_, fr.size() * sizeof(cl_double), cap_fr);
     chain_fr_bytes_ = std::max(chain_fr_bytes_, fr.size() * sizeof(cl_double));
@@ -507,7 +507,27 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
   }
 
  private:
-  static constexpr std::size_t kChainValues = 8;  // chain.cl's VALS
+  // chain.cl's program and kernels; throws std::runtime_error when they do not build.
+  void build_chain_kernels(std::size_t limit) {
+    cl_int err = CL_SUCCESS;
+    chain_program_ = build(context_.get(), device_, detail::kChainKernelSource, info_.name,
+                           "-cl-std=CL1.2 -DVALS=" + std::to_string(detail::kChainValues));
+    std::size_t chain_limit = limit;
+    for (auto [kernel, name] :
+         {std::pair{&k_chain_point_, "chain_point"}, std::pair{&k_chain_sums_, "chain_sums"}}) {
+      *kernel = Kernel(clCreateKernel(chain_program_.get(), name, &err));
+      check(err, "clCreateKernel");
+      std::size_t kernel_max = 0;
+      check(clGetKernelWorkGroupInfo(kernel->get(), device_, CL_KERNEL_WORK_GROUP_SIZE,
+                                     sizeof kernel_max, &kernel_max, nullptr),
+            "clGetKernelWorkGroupInfo");
+      chain_limit = std::min(chain_limit, kernel_max);
+    }
+    chain_wg_ = std::min(wg_, chain_limit);
+  }
+
+  static constexpr auto kChainValues = static_cast<std::size_t>(detail::kChainValues);
+
   // Reallocates `buf` when `bytes` exceeds `capacity` (buffers only grow).
   void grow(Buffer& buf, std::size_t bytes, std::size_t capacity) {
     if (buf.get() != nullptr && bytes <= capacity) return;

@@ -114,7 +114,7 @@ Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& 
   // Component k's surface lies within `reach` of its centre, so a point at |p - c_k| is at
   // least |p - c_k| - reach from it: components that cannot beat the best are skipped
   // (best + reach >= 0, as best >= -ball_radius). Ties go to the lower index.
-  const double reach = std::max(g.ball_radius, g.neck_length + g.neck_radius);
+  const double reach = detail::chain_search_reach(g);
   for (std::size_t k = 0; k < count; ++k) {
     if (k == m) continue;
     const double bound = best.distance + reach;
@@ -291,11 +291,16 @@ double anchor_prior(const ChainState& chain, const Frames& f, const ChainAnchor&
 // free_space_below) may be hidden behind something, or it may not be where the chain puts
 // it. The depth image tells which: a pixel whose ray passes through the ball and sees a
 // surface more than free_space_margin behind it shows free space where the ball would be.
-// Each such ray, sampled over the ball's image disc, is a residual rho - r < 0 (rho: the
-// ray's distance from the centre; zero once the ball has left the ray), with the Jacobian
-// of a ball point whose normal points from the centre to the ray; a pixel with a nearer
-// surface (an occluder) or none says nothing. Added to `s` (H, b, the robust cost; not to
-// the inlier counts) per component; returns the rays.
+// The ball's image is sampled on a fixed kFreeSpaceGrid x kFreeSpaceGrid grid over its
+// bounding square (each sample the pixel under it), so a ball weighs the same at any
+// distance. Each sample that shows free space is a residual rho - r < 0 (rho: its ray's
+// distance from the centre; zero once the ball has left the ray), with the Jacobian of a
+// ball point whose normal points from the centre to the ray, weighed like a point; a
+// pixel with a nearer surface (an occluder, the link itself) or none says nothing. Added
+// to `s` (H, b, the robust cost; not to the inlier counts) per component; returns the
+// rays.
+constexpr int kFreeSpaceGrid = 13;
+
 int add_free_space(Sums& s, const Frames& f, const ComponentGeometry& g,
                    const ChainFitParams& params, const DepthView& depth) {
   int rays = 0;
@@ -306,21 +311,21 @@ int add_free_space(Sums& s, const Frames& f, const ComponentGeometry& g,
     if (!(c.z() > r)) continue;  // at or behind the camera: no disc
     const double u0 = depth.fx * c.x() / c.z() + depth.cx;
     const double v0 = depth.fy * c.y() / c.z() + depth.cy;
-    // The disc's bounding box, sampled on a grid of at most about 13 x 13 pixels.
-    const double reach_px = std::max(depth.fx, depth.fy) * r / (c.z() - r) + 1;
-    if (!(reach_px < 1e4)) continue;
-    const int step = std::max(1, static_cast<int>(reach_px / 6));
-    const int u_lo = std::max(0, static_cast<int>(std::floor(u0 - reach_px)));
-    const int u_hi = std::min(depth.width - 1, static_cast<int>(std::ceil(u0 + reach_px)));
-    const int v_lo = std::max(0, static_cast<int>(std::floor(v0 - reach_px)));
-    const int v_hi = std::min(depth.height - 1, static_cast<int>(std::ceil(v0 + reach_px)));
-    for (int v = v_lo; v <= v_hi; v += step) {
-      for (int u = u_lo; u <= u_hi; u += step) {
+    const double reach_u = depth.fx * r / (c.z() - r), reach_v = depth.fy * r / (c.z() - r);
+    for (int j = 0; j < kFreeSpaceGrid; ++j) {
+      const double v = v0 + reach_v * (2.0 * j / (kFreeSpaceGrid - 1) - 1.0);
+      if (!(v > -0.5 && v < depth.height - 0.5)) continue;  // also bounds the cast below
+      const int iv = static_cast<int>(std::lround(v));
+      for (int i = 0; i < kFreeSpaceGrid; ++i) {
+        const double u = u0 + reach_u * (2.0 * i / (kFreeSpaceGrid - 1) - 1.0);
+        if (!(u > -0.5 && u < depth.width - 0.5)) continue;
+        const int iu = static_cast<int>(std::lround(u));
+        if (iu < 0 || iu >= depth.width || iv < 0 || iv >= depth.height) continue;
         const float z_obs =
-            depth.depth_m[static_cast<std::size_t>(v) * static_cast<std::size_t>(depth.width) +
-                          static_cast<std::size_t>(u)];
+            depth.depth_m[static_cast<std::size_t>(iv) * static_cast<std::size_t>(depth.width) +
+                          static_cast<std::size_t>(iu)];
         if (!(z_obs > 0) || !std::isfinite(z_obs)) continue;
-        const Eigen::Vector3d ray((u - depth.cx) / depth.fx, (v - depth.cy) / depth.fy, 1.0);
+        const Eigen::Vector3d ray((iu - depth.cx) / depth.fx, (iv - depth.cy) / depth.fy, 1.0);
         const Eigen::Vector3d d = ray.normalized();
         const double t_c = c.dot(d);
         const Eigen::Vector3d q = t_c * d;  // the ray's point nearest the centre
@@ -369,6 +374,11 @@ void ChainFitParams::validate() const {
   constexpr double kDeg = 3.14159265358979323846 / 180;
   if (!(cone_limit >= 0.1 * kDeg && cone_limit <= 89.9 * kDeg))
     fields::fail("chain", "cone_limit_deg", cone_limit / kDeg, "must be in [0.1, 89.9]");
+}
+
+double anchor_cost(const ChainState& chain, const ChainAnchor& anchor, const ComponentGeometry& g,
+                   const ChainFitParams& params) {
+  return anchor_prior(chain, frames_of(chain, g), anchor, params.huber, nullptr, nullptr);
 }
 
 SurfaceHit nearest_surface(const Eigen::Vector3d& p, const ChainState& chain,
@@ -428,14 +438,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
                          const ChainState* shape, const ChainAnchor* anchor,
                          ChainPassDevice* device, const DepthView* depth) {
   params.validate();
-  if (depth != nullptr &&
-      (depth->width <= 0 || depth->height <= 0 ||
-       depth->depth_m.size() !=
-           static_cast<std::size_t>(depth->width) * static_cast<std::size_t>(depth->height) ||
-       !(depth->fx > 0) || !(depth->fy > 0) || !std::isfinite(depth->fx) ||
-       !std::isfinite(depth->fy) || !std::isfinite(depth->cx) || !std::isfinite(depth->cy)))
-    throw std::invalid_argument(
-        "fit_chain: the depth image needs width x height values and finite focal lengths > 0");
+  if (depth != nullptr) depth->validate();
   g.validate();
   const int count = static_cast<int>(chain.axis.size());
   if (count != g.count)

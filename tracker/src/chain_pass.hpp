@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -18,6 +19,17 @@ namespace detail {
 // sums are the same bits for any thread count (serial is one thread of the same code) and
 // on a device that sums the same blocks the same way.
 inline constexpr std::size_t kChainBlock = 2048;
+
+// Component k's surface lies within this of its centre: the search skips a component
+// whose centre is farther than the best distance found plus this. One value for the CPU's
+// search and the device's, which must agree bit for bit.
+inline double chain_search_reach(const ComponentGeometry& g) {
+  return std::max(g.ball_radius, g.neck_length + g.neck_radius);
+}
+
+// Values per point that the device's first kernel writes (chain.cl's VALS, passed to its
+// build): robust cost, residual, weight, then the 5 Jacobian entries.
+inline constexpr int kChainValues = 8;
 
 // The chain at one linearization point: centres, axes and each axis's tangent basis, and
 // the components' centres and axes again as arrays for the per-point search.

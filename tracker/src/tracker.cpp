@@ -48,6 +48,17 @@ std::string_view to_string(LostReason r) {
   return "unknown";
 }
 
+void DepthView::validate() const {
+  if (width <= 0 || height <= 0 ||
+      depth_m.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height) ||
+      !(fx > 0 && fy > 0 && std::isfinite(fx) && std::isfinite(fy) && std::isfinite(cx) &&
+        std::isfinite(cy)))
+    throw std::invalid_argument("depth image: needs width x height values (" +
+                                std::to_string(width) + " x " + std::to_string(height) +
+                                ", got " + std::to_string(depth_m.size()) +
+                                ") and finite focal lengths > 0");
+}
+
 void BasePriorParams::validate() const { fields::check(*this, "base_prior"); }
 
 void PolicyParams::validate() const {
@@ -99,16 +110,7 @@ std::span<const std::int32_t> Tracker::last_association() const {
 
 FrameResult Tracker::step(const Cloud& cloud, const Eigen::Isometry3d* X_CB,
                           const DepthView* depth) {
-  if (depth != nullptr &&
-      (depth->width <= 0 || depth->height <= 0 ||
-       depth->depth_m.size() !=
-           static_cast<std::size_t>(depth->width) * static_cast<std::size_t>(depth->height) ||
-       !(depth->fx > 0 && depth->fy > 0 && std::isfinite(depth->fx) && std::isfinite(depth->fy) &&
-         std::isfinite(depth->cx) && std::isfinite(depth->cy))))
-    throw std::invalid_argument(
-        "Tracker::step: the depth image needs width x height values (" +
-        std::to_string(depth->width) + " x " + std::to_string(depth->height) + ", got " +
-        std::to_string(depth->depth_m.size()) + ") and finite focal lengths > 0");
+  if (depth != nullptr) depth->validate();
   if (X_CB != nullptr) {
     const Eigen::Matrix3d R = X_CB->linear();
     if (!X_CB->matrix().allFinite() ||

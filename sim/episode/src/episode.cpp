@@ -87,7 +87,13 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
   m.modes = options.modes.empty() ? std::vector<TrackerMode>{scene.tracker.mode} : options.modes;
   m.world = make_world(scene);
   m.sensor = make_sensor(scene, options.threads);
-  m.chain_only = options.chain_only_images &&
+  // A tracker that reads the depth image (chain-fit's free-space evidence) reads it
+  // anywhere a hidden ball may be held, not only in the true chain's box: whole frames.
+  bool reads_depth = false;
+  for (const TrackerMode mode : m.modes)
+    reads_depth = reads_depth || (mode.spec().update.name == kUpdateChainFit.name &&
+                                  scene.tracker.policy.chain_fit.free_space_below > 0);
+  m.chain_only = options.chain_only_images && !reads_depth &&
                  scene.segmentation.mode == ExtractParams::Mode::truth;
   // Leaked background pixels lie within leakage_px of a link pixel.
   m.margin_px = scene.segmentation.leakage > 0 ? scene.segmentation.leakage_px : 0;

@@ -167,11 +167,14 @@ TEST(Episode, BasePriorIsTheTrueBasePoseWithOneSeededErrorPerEpisode) {
 
 // chain_only_images renders the chain's box only, yet every cloud, track and score is
 // the whole-frame episode's: leakage on (its margin must be rendered too), the hand in
-// front of the link, and whole_frames rendered whole.
+// front of the link, and whole_frames rendered whole. chain-fit and paper compared;
+// chain-fit without its free-space evidence (which reads the whole depth image: with it,
+// every frame is rendered whole, below).
 TEST(Episode, ChainOnlyImagesGiveTheSameCloudsAndScores) {
   // leakage_px reaches past the chain box's own jitter margin, so the margin must be added.
   Scene scene = load_scene(kScenes / "occluder_pass.yaml",
-                           {"segmentation.leakage=0.5", "segmentation.leakage_px=15"});
+                           {"segmentation.leakage=0.5", "segmentation.leakage_px=15",
+                            "tracker.chain_fit.free_space_below=0"});
   struct Run {
     std::vector<std::vector<float>> clouds;
     std::vector<double> errors, occluded;
@@ -182,6 +185,7 @@ TEST(Episode, ChainOnlyImagesGiveTheSameCloudsAndScores) {
     o.frames = static_cast<int>(std::lround(from_s * scene.camera.fps)) + 4;
     o.chain_only_images = chain_only;
     o.whole_frames = {o.frames - 2};
+    o.modes = {parse_mode("chain-fit"), parse_mode("paper")};
     Episode e(scene, o);
     Run r;
     while (e.done() < e.frames()) {
@@ -189,6 +193,7 @@ TEST(Episode, ChainOnlyImagesGiveTheSameCloudsAndScores) {
       if (f.t < from_s - 1e-9) continue;
       r.clouds.push_back(f.cloud->xyz);
       r.errors.push_back(f.scores[0].mean_err);
+      r.errors.push_back(f.scores[1].mean_err);
       r.occluded.push_back(f.image->link_occluded_fraction);
       r.whole.push_back(f.image->rendered == PixelBox{0, f.image->width - 1, 0, f.image->height - 1});
     }
@@ -203,6 +208,13 @@ TEST(Episode, ChainOnlyImagesGiveTheSameCloudsAndScores) {
   EXPECT_GT(a.occluded[0], 0.02) << "the hand was meant to cover part of the link";
   EXPECT_EQ(a.whole, (std::vector<bool>{true, true, true, true}));
   EXPECT_EQ(b.whole, (std::vector<bool>{false, false, true, false}));
+  // With the free-space evidence, chain-fit reads the depth image wherever a hidden ball
+  // is held: every frame whole, the same scores.
+  scene.tracker.policy.chain_fit.free_space_below = 10;
+  const Run c = run(false, 1.8);
+  const Run d = run(true, 1.8);
+  EXPECT_EQ(c.errors, d.errors);
+  EXPECT_EQ(d.whole, (std::vector<bool>{true, true, true, true}));
 }
 
 TEST(Episode, BadOptionsAreNamed) {

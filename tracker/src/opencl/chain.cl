@@ -22,8 +22,8 @@
 #define T2Y(k) fr[10 * count + (k)]
 #define T2Z(k) fr[11 * count + (k)]
 
-// Values per point in `val`: robust cost, residual, weight, then the Jacobian row.
-#define VALS 8
+// VALS, the values per point in `val` (robust cost, residual, weight, then the Jacobian
+// row), comes from the build options (chain_pass.hpp's kChainValues).
 
 typedef struct {
   double distance, s, norm;

@@ -72,7 +72,10 @@ class UpdateChainFit final : public UpdatePolicy {
                        fit.result.rms > params_.misfit_rms)) {
       Fit fresh = fresh_fit(points, init.init(points, static_cast<int>(nodes.size()), &nodes),
                             init, &nodes, X_CB);
-      if (total(fresh) < params_.reinit_gain * total(fit)) {
+      // Both under the fresh fit's (loose) anchor: the tracked fit's own is tighter, and
+      // the same axis error would cost it more.
+      const std::optional<ChainAnchor> loose = anchor(X_CB, false);
+      if (total(fresh, loose) < params_.reinit_gain * total(fit, loose)) {
         fit = std::move(fresh);
         reinit = true;
         last_.reset();
@@ -88,6 +91,8 @@ class UpdateChainFit final : public UpdatePolicy {
     // no ball under it and counts none.
     counts.assign(nodes.size(), 0);
     std::copy(fit.result.counts.begin(), fit.result.counts.end(), counts.begin());
+    device_ = nullptr;  // this frame's: not kept past it
+    depth_ = nullptr;
     return {reinit, passes_};
   }
 
@@ -97,13 +102,19 @@ class UpdateChainFit final : public UpdatePolicy {
     ChainFitResult result;
   };
 
-  // What a fit is chosen by: the points' robust cost and, with a base pose, the anchor's.
-  static double total(const Fit& f) { return f.result.cost + f.result.anchor_cost; }
+  // What a fit is chosen by: the points' robust cost and, with a base pose, the anchor's
+  // (the one it was fitted under, or `under`: fits compare under one anchor).
+  double total(const Fit& f, const std::optional<ChainAnchor>& under = std::nullopt) const {
+    if (!under) return f.result.cost + f.result.anchor_cost;
+    return f.result.cost + anchor_cost(f.chain, *under, geometry_, params_);
+  }
 
   // Where the base pose (issue 17, part 4) puts the first component: ball 0 at its
   // origin; component 0 along joint 0's bend as the last fit had it in the base frame
   // (the link holds its shape: σ the base's and bend_sigma together), or, with no fit to
-  // take it from, along the base's +X (straight_sigma: joint 0 may bend to the cone limit).
+  // take it from, along the base's +X (straight_sigma: loose, as joint 0 may be bent to
+  // the cone limit, where a bend of 25° costs what about 12 points at the Huber threshold
+  // do).
   std::optional<ChainAnchor> anchor(const Eigen::Isometry3d* X_CB, bool tracking) const {
     if (X_CB == nullptr) return std::nullopt;
     ChainAnchor a;

@@ -133,6 +133,11 @@ ChainFitResult fit_chain(const PointsView& points, ChainState& chain,
                          const ChainAnchor* anchor = nullptr, ChainPassDevice* device = nullptr,
                          const DepthView* depth = nullptr);
 
+/// The anchor's cost at `chain`, in the fit's cost units (ChainFitResult::anchor_cost): to
+/// compare fits made under different anchors under one.
+[[nodiscard]] double anchor_cost(const ChainState& chain, const ChainAnchor& anchor,
+                                 const ComponentGeometry& geometry, const ChainFitParams& params);
+
 /// The fit's robust cost (Huber, points beyond max_distance counted at it) of `chain` over
 /// every `stride`-th point: to choose between starts cheaply.
 [[nodiscard]] double chain_cost(const PointsView& points, const ChainState& chain,

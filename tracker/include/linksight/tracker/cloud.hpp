@@ -36,6 +36,9 @@ struct DepthView {
   int width = 0, height = 0;
   std::span<const float> depth_m;  ///< row-major, along the optical axis [m]; <= 0 or not finite: none
   double fx = 0, fy = 0, cx = 0, cy = 0;  ///< [px]
+  /// Throws std::invalid_argument unless there are width x height values (both > 0) and
+  /// the focal lengths are finite and > 0, the principal point finite.
+  void validate() const;
 };
 
 }  // namespace linksight

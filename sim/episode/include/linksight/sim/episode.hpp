@@ -24,7 +24,8 @@ struct EpisodeOptions {
   /// pixels the cloud can be made of: the chain's box grown by the leakage margin (see
   /// RenderExtent). Clouds, tracks and scores are the same as with whole frames; the
   /// images outside the box are misses. Ignored for depth segmentation, which reads the
-  /// whole image.
+  /// whole image, and when a compared mode reads the depth image (chain-fit's free-space
+  /// evidence, tracker.chain_fit.free_space_below > 0).
   bool chain_only_images = false;
   /// Frames rendered whole even so, e.g. those written out as figures.
   std::vector<int> whole_frames;
