@@ -158,18 +158,31 @@ CellResult run(const Scene& scene, const std::vector<TrackerMode>& modes) {
   return cell;
 }
 
+// The suite's scene, board position and grid, from the environment ctest sets.
+struct Suite {
+  std::string scene_file = env("LINKSIGHT_ROBUSTNESS_SCENE", "robustness_static.yaml");
+  std::string at = env("LINKSIGHT_ROBUSTNESS_AT", "middle");
+  std::string grid = env("LINKSIGHT_ROBUSTNESS_GRID", "");
+  // The grid over the scene with the board at `at` and the `extra` overrides.
+  [[nodiscard]] SweepSpec spec(std::vector<std::string> extra = {}) const {
+    SweepSpec s;
+    s.scene = std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file;
+    s.axes = read_grid(grid);
+    s.set = {"occlusion.at=" + at};
+    s.set.insert(s.set.end(), extra.begin(), extra.end());
+    s.validate();
+    return s;
+  }
+};
+
 TEST(Robustness, Bands) {
-  const std::string scene_file = env("LINKSIGHT_ROBUSTNESS_SCENE", "robustness_static.yaml");
-  const std::string at = env("LINKSIGHT_ROBUSTNESS_AT", "middle");
-  const std::string grid = env("LINKSIGHT_ROBUSTNESS_GRID", "");
-  ASSERT_FALSE(grid.empty()) << "LINKSIGHT_ROBUSTNESS_GRID names the grid file (set by ctest)";
-  SweepSpec spec;
-  spec.scene = std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file;
-  spec.axes = read_grid(grid);
-  spec.set = {"occlusion.at=" + at};
+  const Suite suite;
+  ASSERT_FALSE(suite.grid.empty()) << "LINKSIGHT_ROBUSTNESS_GRID names the grid file (set by ctest)";
+  const std::string& scene_file = suite.scene_file;
+  const std::string& at = suite.at;
+  const SweepSpec spec = suite.spec();
   // Every mode of the table; the bands below say which modes each one holds for.
   const std::vector<TrackerMode> modes = all_modes();
-  spec.validate();
   auto axis = [&](const std::string& key, const std::vector<std::string>& values) {
     for (std::size_t k = 0; k < spec.axes.size(); ++k)
       if (spec.axes[k].key == key) return std::stod(values[k]);
@@ -269,15 +282,11 @@ TEST(Robustness, Bands) {
 // chain-fit given the base pose (tracker.base_prior, the true pose with an error drawn
 // once per episode, σ 1 mm and 0.5°), over the cells of the bands above.
 TEST(Robustness, ChainFitWithBasePrior) {
-  const std::string scene_file = env("LINKSIGHT_ROBUSTNESS_SCENE", "robustness_static.yaml");
-  const std::string at = env("LINKSIGHT_ROBUSTNESS_AT", "middle");
-  const std::string grid = env("LINKSIGHT_ROBUSTNESS_GRID", "");
-  ASSERT_FALSE(grid.empty()) << "LINKSIGHT_ROBUSTNESS_GRID names the grid file (set by ctest)";
-  SweepSpec spec;
-  spec.scene = std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file;
-  spec.axes = read_grid(grid);
-  spec.set = {"occlusion.at=" + at, "tracker.base_prior.enabled=true"};
-  spec.validate();
+  const Suite suite;
+  ASSERT_FALSE(suite.grid.empty()) << "LINKSIGHT_ROBUSTNESS_GRID names the grid file (set by ctest)";
+  const std::string& scene_file = suite.scene_file;
+  const std::string& at = suite.at;
+  const SweepSpec spec = suite.spec({"tracker.base_prior.enabled=true"});
   const TrackerMode chain_fit = parse_mode("chain-fit");
   int cells = 0;
   for (std::size_t i = 0; i < spec.cells(); ++i) {

@@ -154,7 +154,7 @@ TEST(Fields, TrackerParamsListTheSceneKeys) {
                         "threads", "iterations", "tolerance_m", "chain_fit{", "max_iterations",
                         "huber_m", "max_distance_m", "tolerance_m", "reassociate_m", "bend_sigma_deg",
                         "straight_sigma_deg", "misfit_inliers", "misfit_rms_m", "reinit_gain",
-                        "free_space_below", "free_space_margin_m", "}", "base_prior{", "enabled", "sigma_m", "sigma_deg", "}"}));
+                        "free_space_below", "free_space_margin_m", "hidden_below", "}", "base_prior{", "enabled", "sigma_m", "sigma_deg", "}"}));
   ComponentGeometry g;
   Recorder rg;
   g.fields(rg);

@@ -352,6 +352,22 @@ int add_free_space(Sums& s, const Frames& f, const ComponentGeometry& g,
   return rays;
 }
 
+// With a base pose: a hidden ball (fewer inliers than hidden_below) is held where the
+// anchor says it was last seen, in the base frame moved to this frame. The residual is its
+// centre's offset, in u_k's centre part (so it sums per component like a point), weighed
+// as the anchor is: one held_sigma_m costs a point at the Huber threshold. Its cost goes
+// into the pass's robust cost, as its weight depends on the pass's counts.
+void add_held(Sums& s, const Frames& f, const ChainFitParams& params, const ChainAnchor& a) {
+  const double w = std::pow(params.huber / a.held_sigma_m, 2);
+  for (std::size_t k = 0; k < s.count.size() && k < a.held.size(); ++k) {
+    if (!a.held[k] || s.count[k] >= params.hidden_below) continue;
+    const Eigen::Vector3d r = f.centre[k] - *a.held[k];
+    s.robust += 0.5 * w * r.squaredNorm();
+    s.H[k].topLeftCorner<3, 3>().diagonal().array() += w;
+    s.b[k].head<3>() -= w * r;
+  }
+}
+
 ChainState stepped(const ChainState& chain, const Frames& f, const Eigen::VectorXd& dx) {
   ChainState out = chain;
   out.c0 += dx.head<3>();
@@ -455,6 +471,16 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
         std::isfinite(anchor->sigma_rad)))
     throw std::invalid_argument(
         "fit_chain: the anchor needs a finite c0, a unit axis0 and finite sigmas > 0");
+  if (anchor != nullptr) {
+    bool held_ok = anchor->held.size() <= static_cast<std::size_t>(count) &&
+                   anchor->held_sigma_m > 0 && std::isfinite(anchor->held_sigma_m);
+    for (const std::optional<Eigen::Vector3d>& h : anchor->held)
+      held_ok = held_ok && (!h || h->allFinite());
+    if (!held_ok)
+      throw std::invalid_argument(
+          "fit_chain: the anchor's held centres must be finite, at most one per component, "
+          "with a finite sigma > 0");
+  }
   const Eigen::Index n = 3 + 2 * count;
   ChainFitResult result;
   double lambda = 1e-4;  // damping, relative to the diagonal (Levenberg-Marquardt)
@@ -485,6 +511,7 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
                            reuse ? Association{assoc.data(), true}
                                  : Association{first ? assoc.data() : trial_assoc.data(), false});
     if (depth != nullptr) rays = add_free_space(sums, fr, g, params, *depth);
+    if (anchor != nullptr) add_held(sums, fr, params, *anchor);
     return sums;
   };
   Sums current = run_pass(f, chain, false, true);

@@ -20,6 +20,9 @@ namespace {
 
 // The prediction's screen uses every kScreenStride-th point.
 constexpr std::size_t kScreenStride = 8;
+// A ball counts as seen well, for holding it (hold_seen), with at least this share of the
+// median seen ball's inliers (a part-hidden ball's centre is less sure).
+constexpr double kSeenShare = 0.5;
 // slide_to_best's passes (its candidate shifts).
 constexpr int kSlideSteps = kSlideCandidates;
 
@@ -82,6 +85,7 @@ class UpdateChainFit final : public UpdatePolicy {
       }
     }
     (void)replace(nodes, fit.chain.nodes(geometry_.pitch));
+    hold_seen(fit, X_CB, restarted || reinit);
     before_ = std::move(last_);
     last_ = nodes;
     last_X_CB_.reset();
@@ -129,7 +133,34 @@ class UpdateChainFit final : public UpdatePolicy {
     }
     a.axis0 = (X_CB->linear() * bend_B).normalized();
     a.sigma_rad = std::hypot(base_.sigma_rad, bend_sigma);
+    if (tracking) {
+      a.held.resize(held_B_.size());
+      for (std::size_t k = 0; k < held_B_.size(); ++k)
+        if (held_B_[k]) a.held[k] = *X_CB * *held_B_[k];
+      a.held_sigma_m = base_.sigma_m;
+    }
     return a;
+  }
+
+  // Each ball the fit saw well (at least kSeenShare of the median seen ball's inliers),
+  // in the base frame: where a hidden ball is held (ChainAnchor::held). Forgotten on a
+  // fresh start and on a frame without a base pose.
+  void hold_seen(const Fit& fit, const Eigen::Isometry3d* X_CB, bool fresh) {
+    if (X_CB == nullptr || fresh) held_B_.clear();
+    if (X_CB == nullptr) return;
+    const std::vector<std::int64_t>& n = fit.result.counts;
+    std::vector<std::int64_t> seen;
+    for (const std::int64_t c : n)
+      if (c > 0) seen.push_back(c);
+    if (seen.empty()) return;
+    std::nth_element(seen.begin(), seen.begin() + static_cast<std::ptrdiff_t>(seen.size() / 2),
+                     seen.end());
+    const double enough = kSeenShare * static_cast<double>(seen[seen.size() / 2]);
+    held_B_.resize(n.size());
+    const Eigen::Isometry3d X_BC = X_CB->inverse();
+    for (std::size_t k = 0; k < n.size(); ++k)
+      if (static_cast<double>(n[k]) >= enough)
+        held_B_[k] = X_BC * fit.chain.centre(static_cast<int>(k), geometry_.pitch);
   }
 
   // The fit from `start`: after an initialization, slid along itself into the fit's reach
@@ -257,6 +288,8 @@ class UpdateChainFit final : public UpdatePolicy {
   std::optional<Nodes> last_, before_;  // the last two frames' fits, for the velocity
   // The base pose given with the last fit (none: not given).
   std::optional<Eigen::Isometry3d> last_X_CB_;
+  // Each ball where it was last seen well, in the base frame (hold_seen).
+  std::vector<std::optional<Eigen::Vector3d>> held_B_;
   std::size_t last_inliers_ = 0;        // the last fit's inliers, for the loss test
   int passes_ = 0;                      // this frame's passes over the points
   ChainPassDevice* device_ = nullptr;   // this frame's: where the fits' passes run

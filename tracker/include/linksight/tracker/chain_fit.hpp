@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "linksight/tracker/chain_state.hpp"
@@ -53,6 +54,9 @@ struct ChainFitParams {
   /// of that ray, each such ray weighing as one point.
   int free_space_below = 10;
   double free_space_margin = 0.005;  ///< [m]
+  /// With a base pose: a component with fewer inliers than this is held where it was last
+  /// seen in the base frame (ChainAnchor::held), not where the seen part's bends put it.
+  int hidden_below = 10;
   /// The largest bend between neighbouring components [rad]: the chain's cone limit, not
   /// a key of this block (a scene sets it from chain.cone_limit_deg).
   double cone_limit = 25.0 * 3.14159265358979323846 / 180.0;
@@ -71,6 +75,7 @@ struct ChainFitParams {
     ar("reinit_gain", reinit_gain, fields::in(0, 1));
     ar("free_space_below", free_space_below, fields::in(0, 1000000));
     ar("free_space_margin_m", free_space_margin, fields::in(0, 1));
+    ar("hidden_below", hidden_below, fields::in(0, 1000000));
   }
   /// Throws fields::FieldError naming the key (cone_limit as the chain's cone_limit_deg).
   void validate() const;
@@ -86,6 +91,12 @@ struct ChainAnchor {
   double sigma_m = 0.001;                           ///< of c0 [m]
   Eigen::Vector3d axis0 = Eigen::Vector3d::UnitZ(); ///< unit [C]
   double sigma_rad = 0.01;                          ///< of axis0 [rad]
+  /// Where each ball was when last seen, moved with the base ([m, C]; empty: none known):
+  /// a ball with fewer inliers than ChainFitParams::hidden_below is held there, σ
+  /// held_sigma_m, so that a hidden part stays where the base carries it rather than
+  /// turning with each frame's noisy bends of the seen part next to it.
+  std::vector<std::optional<Eigen::Vector3d>> held;
+  double held_sigma_m = 0.001;  ///< [m]
 };
 
 struct ChainFitResult {
@@ -98,7 +109,7 @@ struct ChainFitResult {
   /// final step within the tolerance, taken unchecked, is not in them.
   std::size_t inliers = 0;
   double rms = 0.0;
-  double cost = 0.0;        ///< robust cost of the points and free-space rays (no priors)
+  double cost = 0.0;  ///< robust cost of the points, free-space rays and held balls (no priors)
   double anchor_cost = 0.0; ///< the anchor's cost (0 without one), in the cost's units
   int free_space_rays = 0;  ///< rays through a few-point component's place, at the end
   std::vector<std::int64_t> counts;  ///< inliers nearest each component (count entries)
