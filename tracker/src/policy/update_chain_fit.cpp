@@ -77,7 +77,7 @@ class UpdateChainFit final : public UpdatePolicy {
                             init, &nodes, X_CB);
       // Both under the fresh fit's (loose) anchor: the tracked fit's own is tighter, and
       // the same axis error would cost it more.
-      const std::optional<ChainAnchor> loose = anchor(X_CB, false);
+      const Anchor loose = anchor(X_CB, false);
       if (total(fresh, loose) < params_.reinit_gain * total(fit, loose)) {
         fit = std::move(fresh);
         reinit = true;
@@ -101,6 +101,14 @@ class UpdateChainFit final : public UpdatePolicy {
   }
 
  private:
+  // A ChainAnchor or none (not std::optional: GCC 12 warns, falsely, that the vector in it
+  // may be used uninitialized when it is copied out of one).
+  struct Anchor {
+    bool given = false;
+    ChainAnchor anchor;
+    [[nodiscard]] const ChainAnchor* get() const { return given ? &anchor : nullptr; }
+  };
+
   struct Fit {
     ChainState chain;
     ChainFitResult result;
@@ -108,9 +116,10 @@ class UpdateChainFit final : public UpdatePolicy {
 
   // What a fit is chosen by: the points' robust cost and, with a base pose, the anchor's
   // (the one it was fitted under, or `under`: fits compare under one anchor).
-  double total(const Fit& f, const std::optional<ChainAnchor>& under = std::nullopt) const {
-    if (!under) return f.result.cost + f.result.anchor_cost;
-    return f.result.cost + anchor_cost(f.chain, *under, geometry_, params_);
+  static double total(const Fit& f) { return f.result.cost + f.result.anchor_cost; }
+  double total(const Fit& f, const Anchor& under) const {
+    if (!under.given) return total(f);
+    return f.result.cost + anchor_cost(f.chain, under.anchor, geometry_, params_);
   }
 
   // Where the base pose (issue 17, part 4) puts the first component: ball 0 at its
@@ -119,9 +128,11 @@ class UpdateChainFit final : public UpdatePolicy {
   // take it from, along the base's +X (straight_sigma: loose, as joint 0 may be bent to
   // the cone limit, where a bend of 25° costs what about 12 points at the Huber threshold
   // do).
-  std::optional<ChainAnchor> anchor(const Eigen::Isometry3d* X_CB, bool tracking) const {
-    if (X_CB == nullptr) return std::nullopt;
-    ChainAnchor a;
+  Anchor anchor(const Eigen::Isometry3d* X_CB, bool tracking) const {
+    Anchor out;
+    if (X_CB == nullptr) return out;
+    out.given = true;
+    ChainAnchor& a = out.anchor;
     a.c0 = X_CB->translation();
     a.sigma_m = base_.sigma_m;
     Eigen::Vector3d bend_B = Eigen::Vector3d::UnitX();
@@ -139,7 +150,7 @@ class UpdateChainFit final : public UpdatePolicy {
         if (held_B_[k]) a.held[k] = *X_CB * *held_B_[k];
       a.held_sigma_m = base_.sigma_m;
     }
-    return a;
+    return out;
   }
 
   // Each ball the fit saw well (at least kSeenShare of the median seen ball's inliers),
@@ -166,9 +177,9 @@ class UpdateChainFit final : public UpdatePolicy {
   // The fit from `start`: after an initialization, slid along itself into the fit's reach
   // first (`slide`); else holding the start's shape (the last fit's, moved with the link).
   Fit fit_from(const PointsView& points, const Nodes& start, bool fresh,
-               const std::optional<ChainAnchor>& anchor, bool slide = true) {
+               const Anchor& anchor, bool slide = true) {
     Fit f{chain_from_nodes(start, geometry_), {}};
-    const ChainAnchor* a = anchor ? &*anchor : nullptr;
+    const ChainAnchor* a = anchor.get();
     if (!fresh) {
       const ChainState shape = f.chain;
       f.result = fit_chain(points, f.chain, geometry_, params_, threads_, &shape, a, device_,
@@ -209,7 +220,7 @@ class UpdateChainFit final : public UpdatePolicy {
   // holds where the points show only part of the link (the base end hidden).
   Fit fresh_fit(const PointsView& points, const Nodes& start, const InitPolicy& init,
                 const Nodes* previous, const Eigen::Isometry3d* X_CB) {
-    const std::optional<ChainAnchor> a = anchor(X_CB, false);
+    const Anchor a = anchor(X_CB, false);
     Fit best = fit_from(points, base_first(start, X_CB), true, a);
     if (X_CB != nullptr) {
       Nodes out(start.size());
