@@ -35,7 +35,7 @@ int run_render(const RenderOptions& o) {
   const int frames = sim::camera_frames(scene, o.frames);
   std::unique_ptr<sim::World> world = sim::make_world(scene);
   std::unique_ptr<sim::Sensor> sensor = sim::make_sensor(scene, o.threads);
-  sim::Recorder recorder(o.out, scene.camera, o.force);
+  sim::Recorder recorder(o.out, scene.camera, scene.chain.geometry, o.force);
   sim::DepthFrame image;
   std::size_t points = 0;
   double occluded = 0;
@@ -78,7 +78,7 @@ Runner add_render(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--out", o->out,
                  "output directory: depth/, labels/, clouds/, intrinsics.json, camera.json, "
-                 "truth.csv (camera frame), occlusion.csv, base_pose.csv (true X_CB, for track "
+                 "truth.csv (camera frame), occlusion.csv, chain.json (component geometry), base_pose.csv (true X_CB, for track "
                  "--base-prior)")
       ->capture_default_str();
   app.add_flag("--force", o->force, "replace an existing output directory");

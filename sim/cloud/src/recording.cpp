@@ -3,7 +3,10 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cmath>
 #include <iomanip>
+#include <set>
+#include <type_traits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -106,8 +109,9 @@ std::string frame_name(int frame, const char* ext) {
 }
 }  // namespace
 
-Recorder::Recorder(fs::path dir, const CameraParams& camera, bool force)
-    : out_(std::move(dir), force), camera_(camera) {
+Recorder::Recorder(fs::path dir, const CameraParams& camera, const ComponentGeometry& geometry,
+                   bool force)
+    : out_(std::move(dir), force), camera_(camera), geometry_(geometry) {
   std::error_code ec;
   for (const char* sub : {"depth", "labels", "clouds"}) {
     fs::create_directories(out_.path() / sub, ec);
@@ -146,11 +150,79 @@ void Recorder::write_frame(int frame, const Truth& truth, const DepthFrame& imag
 void Recorder::commit() {
   io::write_intrinsics(out_.path() / "intrinsics.json", camera_.intrinsics);
   write_camera_json(out_.path() / "camera.json", camera_);
+  write_chain_json(out_.path() / "chain.json", geometry_);
   truth_.close();
   occlusion_.close();
   base_.close();
   if (!truth_ || !occlusion_ || !base_) throw io::InputError(out_.final_path().string() + ": write failed");
   out_.commit();
+}
+
+namespace {
+
+// chain.json from ComponentGeometry's one field list: numbers only (its fields are).
+struct ChainJsonOut {
+  nlohmann::json& j;
+  template <class T>
+  void operator()(const char* key, T& v, fields::Rule = {}) {
+    j[key] = v;
+  }
+};
+
+struct ChainJsonIn {
+  const nlohmann::json& j;
+  const std::string& file;
+  std::set<std::string> seen;
+  template <class T>
+  void operator()(const char* key, T& v, fields::Rule = {}) {
+    seen.insert(key);
+    const auto it = j.find(key);
+    if (it == j.end()) throw io::InputError(file + ": no key '" + key + "'");
+    if (!it->is_number())
+      throw io::InputError(file + ": " + key + " = " + it->dump() + ": not a number");
+    const double x = it->get<double>();
+    if constexpr (std::is_integral_v<T>) {
+      if (!(x >= -1e9 && x <= 1e9) || x != std::floor(x))
+        throw io::InputError(file + ": " + key + " = " + it->dump() + ": not a whole number");
+      v = static_cast<T>(x);
+    } else {
+      v = x;
+    }
+  }
+};
+
+}  // namespace
+
+void write_chain_json(const fs::path& path, const ComponentGeometry& geometry) {
+  nlohmann::json j = nlohmann::json::object();
+  ChainJsonOut out{j};
+  const_cast<ComponentGeometry&>(geometry).fields(out);
+  io::write_file_atomic(path, [&](std::ostream& os) { os << j.dump(2) << '\n'; });
+}
+
+ComponentGeometry read_chain_json(const fs::path& path) {
+  const std::string file = path.string();
+  std::ifstream in(path);
+  if (!in) throw io::InputError(file + ": cannot open (a recording from `linksight render`)");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw io::InputError(file + ": malformed JSON: " + e.what());
+  }
+  if (!j.is_object()) throw io::InputError(file + ": not a JSON object");
+  ComponentGeometry g;
+  ChainJsonIn reader{j, file, {}};
+  g.fields(reader);
+  for (const auto& item : j.items())
+    if (!reader.seen.count(item.key()))
+      throw io::InputError(file + ": unknown key '" + item.key() + "'");
+  try {
+    g.validate();
+  } catch (const std::invalid_argument& e) {
+    throw io::InputError(file + ": " + e.what());
+  }
+  return g;
 }
 
 }  // namespace linksight::sim

@@ -9,6 +9,8 @@
 ///   DIR/camera.json          X_WC (4x4 row-major), fps, z range
 ///   DIR/truth.csv            frame,t_s,node,x_m,y_m,z_m: true nodes in the camera frame
 ///   DIR/occlusion.csv        frame,component,visible_px,visible_px_unoccluded,occluded_fraction
+///   DIR/chain.json           the chain's component geometry (the scene's `chain` keys), for
+///                            scoring estimates against the truth (`linksight score`)
 
 #include <cstdint>
 #include <filesystem>
@@ -20,6 +22,7 @@
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/world.hpp"
 #include "linksight/tracker/cloud.hpp"
+#include "linksight/tracker/geometry.hpp"
 
 namespace linksight::sim {
 
@@ -38,12 +41,20 @@ void write_label_png(const std::filesystem::path& path, int width, int height,
 /// camera.json: {"X_WC": [16 numbers, row-major], "fps", "z_min_m", "z_max_m"}.
 void write_camera_json(const std::filesystem::path& path, const CameraParams& camera);
 
+/// chain.json: the component geometry under the scene's `chain` keys (ball_radius_m,
+/// pitch_m, neck_radius_m, neck_length_m, count), written atomically.
+void write_chain_json(const std::filesystem::path& path, const ComponentGeometry& geometry);
+/// Reads chain.json. Throws io::InputError "<file>: <problem>" naming the key for a
+/// missing, unknown, non-numeric or out-of-range key, or malformed JSON.
+[[nodiscard]] ComponentGeometry read_chain_json(const std::filesystem::path& path);
+
 /// Streams a recording into a staging directory beside `dir`; commit() renames it to
 /// `dir` (replacing an old one only when `force`). Without commit() nothing is left.
 class Recorder {
  public:
   /// Throws io::InputError when `dir` exists and !force, or cannot be created.
-  Recorder(std::filesystem::path dir, const CameraParams& camera, bool force);
+  Recorder(std::filesystem::path dir, const CameraParams& camera,
+           const ComponentGeometry& geometry, bool force);
   ~Recorder();
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
@@ -54,6 +65,7 @@ class Recorder {
  private:
   io::StagedDir out_;  // declared first: the streams close before it cleans up
   CameraParams camera_;
+  ComponentGeometry geometry_;
   std::ofstream truth_, occlusion_, base_;
 };
 
