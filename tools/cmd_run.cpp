@@ -21,6 +21,7 @@
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "format.hpp"
+#include "run_report.hpp"
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/error.hpp"
@@ -49,14 +50,6 @@ struct RunOptions {
   bool print_scene = false;
 };
 
-// Statistics in report units (`unit` per SI unit: 1e3 for mm or ms).
-nlohmann::json stats_json(const sim::Stats& s, double unit) {
-  return {{"mean", json_number(s.mean * unit)},
-          {"median", json_number(s.median * unit)},
-          {"p95", json_number(s.p95 * unit)},
-          {"max", json_number(s.max * unit)}};
-}
-
 // A progress bar on a terminal: frames done, rate, time left.
 void progress(int done, int total, double elapsed_s) {
   constexpr int kWidth = 30;
@@ -73,9 +66,6 @@ int run_run(const RunOptions& o) {
     throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 0");
   if (o.threads < 0)
     throw std::invalid_argument("--threads = " + std::to_string(o.threads) + ": must be >= 0");
-  if (o.overlays < 0 || o.overlays > 100)
-    throw std::invalid_argument("--overlays = " + std::to_string(o.overlays) +
-                                ": must be in [0, 100]");
   if (o.print_scene) {
     std::cout << sim::resolved_scene_yaml(o.scene, o.set);
     return kExitOk;
@@ -85,12 +75,8 @@ int run_run(const RunOptions& o) {
   eo.frames = o.frames;
   eo.threads = o.threads;
   if (!o.compare.empty()) eo.modes = parse_compare(o.compare);
-  std::set<int> overlay_frames;
-  {
-    const int n = sim::camera_frames(scene, o.frames);
-    for (int i = 0; i < std::min(o.overlays, n); ++i)
-      overlay_frames.insert(static_cast<int>((i + 0.5) * n / o.overlays));
-  }
+  const std::set<int> overlay_frames =
+      choose_overlay_frames(sim::camera_frames(scene, o.frames), o.overlays);
   // Nothing but the overlays' depth images is written, so the other frames need only the
   // pixels their clouds come from.
   eo.chain_only_images = true;
@@ -99,23 +85,11 @@ int run_run(const RunOptions& o) {
   const fs::path out = o.out.empty() ? fs::path("out/run") / fs::path(o.scene).stem() : fs::path(o.out);
   io::StagedDir dir(out, o.force);
   const fs::path stage = dir.path();
-  fs::create_directories(stage / "overlays");
-
-  std::ofstream frames_csv(stage / "frames.csv"), nodes_csv(stage / "nodes.csv"),
-      overlay_csv(stage / "overlays" / "nodes_px.csv");
-  if (!frames_csv || !nodes_csv || !overlay_csv)
-    throw io::InputError(out.string() + ": cannot write");
-  frames_csv << "mode,frame,t_s,n_points,occluded_fraction,truth_motion_mm,mean_err_mm,"
-                "max_err_mm,sdf_err_mm,polyline_err_mm,swaps,reversed,reinit,init_reason,lost,"
-                "time_ms\n";
-  nodes_csv << "mode,frame,node,x_m,y_m,z_m,true_x_m,true_y_m,true_z_m,err_mm\n";
-  overlay_csv << "frame,who,node,u_px,v_px\n";
-  frames_csv << std::setprecision(9);
-  nodes_csv << std::setprecision(9);
-  overlay_csv << std::setprecision(6);
+  std::vector<std::string> names;
+  for (const TrackerMode m : episode.modes()) names.emplace_back(to_string(m));
+  RunReport report(stage, out, names);
 
   const int n = episode.frames();
-  const auto& modes = episode.modes();
   const io::Intrinsics& K = scene.camera.intrinsics;
 
   const bool bar = !o.quiet && isatty(fileno(stderr));
@@ -128,44 +102,13 @@ int run_run(const RunOptions& o) {
     physics += episode.last_times().physics;
     render += episode.last_times().render;
     extract += episode.last_times().extract;
-    for (std::size_t k = 0; k < modes.size(); ++k) {
-      const FrameResult& r = f.results[k];
-      const sim::FrameScore& s = f.scores[k];
-      const std::string mode(to_string(modes[k]));
-      frames_csv << mode << ',' << f.frame << ',' << f.t << ',' << f.cloud->size() << ','
-                 << f.image->link_occluded_fraction << ',' << f.truth_motion * 1e3 << ','
-                 << format_fixed(s.mean_err * 1e3, 4) << ',' << format_fixed(s.max_err * 1e3, 4) << ','
-                 << format_fixed(r.sdf_error * 1e3, 4) << ',' << format_fixed(s.polyline * 1e3, 4) << ','
-                 << s.swaps << ',' << s.reversed << ',' << r.reinit << ','
-                 << to_string(r.init_reason) << ',' << r.lost << ',' << format_fixed(r.time_s * 1e3, 4)
-                 << '\n';
-      if (!r.lost) {
-        for (std::size_t j = 0; j < f.truth_C.size(); ++j) {
-          const Eigen::Vector3d& e = r.nodes[s.reversed ? r.nodes.size() - 1 - j : j];
-          const Eigen::Vector3d& t = f.truth_C[j];
-          nodes_csv << mode << ',' << f.frame << ',' << j << ',' << e.x() << ',' << e.y() << ','
-                    << e.z() << ',' << t.x() << ',' << t.y() << ',' << t.z() << ','
-                    << format_fixed(s.node_err[j] * 1e3, 4) << '\n';
-        }
-      }
-    }
+    const ReportFrame rf{f.frame, f.t, f.cloud->size(), f.image->link_occluded_fraction,
+                         f.truth_motion, &f.truth_C};
+    report.add(rf, f.results, f.scores);
     if (overlay_frames.count(f.frame)) {
-      char name[40];
-      std::snprintf(name, sizeof name, "depth_%06d.png", f.frame);
-      io::write_depth_png(stage / "overlays" / name, f.image->depth);
-      auto emit = [&](const std::string& who, const Nodes& nodes) {
-        for (std::size_t j = 0; j < nodes.size(); ++j) {
-          const Eigen::Vector2d px = K.project(nodes[j]);
-          overlay_csv << f.frame << ',' << who << ',' << j << ',' << px.x() << ',' << px.y()
-                      << '\n';
-        }
-      };
-      emit("truth", f.truth_C);
-      for (std::size_t k = 0; k < modes.size(); ++k)
-        if (!f.results[k].lost) emit(std::string(to_string(modes[k])), f.results[k].nodes);
+      io::write_depth_png(stage / "overlays" / overlay_depth_name(f.frame), f.image->depth);
+      report.overlay(rf, K, f.results);
     }
-    if (!frames_csv || !nodes_csv || !overlay_csv)
-      throw io::InputError(out.string() + ": write failed");
     if (bar)
       progress(episode.done(), n,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count());
@@ -174,11 +117,7 @@ int run_run(const RunOptions& o) {
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (bar) std::cerr << "\n";
-  frames_csv.close();
-  nodes_csv.close();
-  overlay_csv.close();
-  if (!frames_csv || !nodes_csv || !overlay_csv)
-    throw io::InputError(out.string() + ": write failed");
+  report.close();
 
   // summary.json
   const int done = episode.done();
@@ -197,31 +136,7 @@ int run_run(const RunOptions& o) {
         {"extract", done ? extract / done * 1e3 : 0.0},
         {"wall", done ? wall / done * 1e3 : 0.0}}},
   };
-  nlohmann::json per_mode = nlohmann::json::object();
-  for (std::size_t k = 0; k < modes.size(); ++k) {
-    const sim::EpisodeSummary& s = summaries[k];
-    nlohmann::json events = nlohmann::json::array();
-    for (const sim::Event& e : s.events) {
-      events.push_back({{"kind", sim::to_string(e.kind)},
-                        {"start_frame", e.start},
-                        {"end_frame", e.end},
-                        {"frames_to_recover", e.frames_to_recover >= 0
-                                                  ? nlohmann::json(e.frames_to_recover)
-                                                  : nlohmann::json(nullptr)}});
-    }
-    // The metrics under the names sweep's tables use (sim::episode_metrics), then timing
-    // and the events.
-    nlohmann::json m = nlohmann::json::object();
-    for (const sim::EpisodeMetric& metric : sim::episode_metrics(s)) {
-      m[metric.name] = metric.integer && !std::isnan(metric.value)
-                           ? nlohmann::json(static_cast<long>(metric.value))
-                           : json_number(metric.value);
-    }
-    m["time_ms"] = stats_json(s.time, 1e3);
-    m["event_list"] = events;
-    per_mode[std::string(to_string(modes[k]))] = m;
-  }
-  summary["modes"] = per_mode;
+  summary["modes"] = report.modes_json(summaries);
   io::write_file_atomic(stage / "summary.json", [&](std::ostream& os) {
     os << summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   });
@@ -238,20 +153,7 @@ int run_run(const RunOptions& o) {
   if (!o.quiet) {
     std::cout << (done < n ? "interrupted after " : "ran ") << done << " frames of " << o.scene
               << " (" << format_fixed(done / std::max(wall, 1e-9), 1) << " frames/s)\n";
-    std::cout << std::left << std::setw(17) << "mode" << std::right << std::setw(10)
-              << "mean_mm" << std::setw(10) << "p95_mm" << std::setw(10) << "max_mm"
-              << std::setw(9) << "<5mm_%" << std::setw(8) << "reinit" << std::setw(7) << "swaps"
-              << std::setw(10) << "time_ms" << "\n";
-    for (std::size_t k = 0; k < modes.size(); ++k) {
-      const sim::EpisodeSummary& s = summaries[k];
-      std::cout << std::left << std::setw(17) << to_string(modes[k]) << std::right
-                << std::setw(10) << format_fixed(s.node_err.mean * 1e3, 2) << std::setw(10)
-                << format_fixed(s.node_err.p95 * 1e3, 2) << std::setw(10)
-                << format_fixed(s.node_err.max * 1e3, 2) << std::setw(9)
-                << format_fixed(100 * s.under_5mm, 1) << std::setw(8) << s.reinit_count
-                << std::setw(7) << s.swaps << std::setw(10) << format_fixed(s.time.mean * 1e3, 2)
-                << "\n";
-    }
+    report.print_table(std::cout, summaries);
     std::cout << "wrote " << out.string() << "/{frames.csv,nodes.csv,summary.json}"
               << (figures_note.empty() && o.figures ? ", figures in " + out.string() + "/figures/"
                                                     : std::string())

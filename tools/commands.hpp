@@ -19,6 +19,7 @@ Runner add_simulate(CLI::App& app);
 Runner add_meshes(CLI::App& app);
 Runner add_render(CLI::App& app);
 Runner add_run(CLI::App& app);
+Runner add_score(CLI::App& app);
 Runner add_sweep(CLI::App& app);
 Runner add_calibrate_noise(CLI::App& app);
 Runner add_fidelity(CLI::App& app);

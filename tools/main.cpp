@@ -26,6 +26,10 @@ int main(int argc, char** argv) {
        "A grid of short episodes over scene keys (noise, occluders, tracker mode, seed, "
        "scene), one row per cell; shards for Slurm job arrays; 'sweep merge DIR' joins them.",
        add_sweep},
+      {"score",
+       "Score any tracker's nodes.csv against a recording's truth (from render) with the "
+       "metrics of run: frames.csv, nodes.csv, summary.json, figures; several side by side.",
+       add_score},
       {"track", "Track the link through a sequence of clouds (PLY or 16-bit depth PNG).",
        add_track},
       {"synth", "Write a synthetic cloud sequence of the link with its true nodes.", add_synth},

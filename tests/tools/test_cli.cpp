@@ -4,6 +4,8 @@
 
 #include <fstream>
 #include <functional>
+#include <map>
+#include <set>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -351,8 +353,14 @@ TEST_F(Cli, RenderWritesARecordingThatTrackReplays) {
   const CliRun r = run("render --scene " + scene + " --frames 3 --out " + out.string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* f :
-       {"intrinsics.json", "camera.json", "truth.csv", "occlusion.csv", "base_pose.csv"})
+       {"intrinsics.json", "camera.json", "truth.csv", "occlusion.csv", "base_pose.csv",
+        "chain.json"})
     EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
+  // The scene's component geometry, for score's SDF metric.
+  const ComponentGeometry g = sim::read_chain_json(out / "chain.json");
+  EXPECT_EQ(g.count, 11);
+  EXPECT_EQ(g.ball_radius, 0.015);
+  EXPECT_EQ(g.pitch, 0.045);
   const io::Intrinsics k = io::read_intrinsics(out / "intrinsics.json");
   EXPECT_EQ(k.width, 640);
   EXPECT_DOUBLE_EQ(k.depth_scale, 0.000125);
@@ -496,6 +504,168 @@ TEST_F(Cli, RenderBadInputLeavesNothing) {
   bad("--scene " + (dir / "hand.yaml").string(), "hand.yaml:3: occluders[0].mesh: ");
   expect_existing_out_needs_force("render --scene " + scene + " --frames 1",
                                   fs::path("depth") / "000000.png");
+}
+
+// The rows of a run's nodes.csv for one mode, as a file of its own (frames in `drop` left
+// out): what a tracker that ran elsewhere would hand to score.
+fs::path mode_nodes(const fs::path& run_dir, const std::string& mode, const fs::path& file,
+                    const std::set<int>& drop = {}) {
+  std::ifstream in(run_dir / "nodes.csv");
+  std::ofstream os(file);
+  std::string line;
+  std::getline(in, line);
+  os << line << "\n";
+  while (std::getline(in, line)) {
+    int frame = -1;
+    std::sscanf(line.c_str() + mode.size() + 1, "%d", &frame);
+    if (line.rfind(mode + ",", 0) == 0 && !drop.count(frame)) os << line << "\n";
+  }
+  return file;
+}
+
+// The rows of frames.csv by mode and column.
+std::map<std::string, std::vector<std::map<std::string, std::string>>> frames_by_mode(
+    const fs::path& csv) {
+  std::map<std::string, std::vector<std::map<std::string, std::string>>> out;
+  const auto rows = lines_of(csv);
+  std::vector<std::string> header;
+  std::stringstream hs(rows.at(0));
+  for (std::string c; std::getline(hs, c, ',');) header.push_back(c);
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    std::stringstream rs(rows[i]);
+    std::map<std::string, std::string> row;
+    std::size_t c = 0;
+    for (std::string v; std::getline(rs, v, ',');) row[header.at(c++)] = v;
+    out[row["mode"]].push_back(row);
+  }
+  return out;
+}
+
+// linksight score (issue 18): a run's own estimates, scored again from files against the
+// same scene rendered, give the run's scores: the same code path (truth.csv holds the
+// truth to 1 um, so millimetre columns agree to 0.002 mm). Frames an estimate leaves out
+// are lost, and several estimates are scored side by side.
+TEST_F(Cli, ScoreGivesRunsScoresForRunsOwnEstimates) {
+  // occluder_pass with its hand crossing the link in the first 8 frames.
+  std::string text = slurp_text(fs::path(LINKSIGHT_SCENE_DIR) / "occluder_pass.yaml");
+  const std::string meshes = std::string(LINKSIGHT_SCENE_DIR) + "/../meshes/";
+  for (std::size_t at = text.find("../meshes/"); at != std::string::npos;
+       at = text.find("../meshes/", at + meshes.size()))
+    text.replace(at, 10, meshes);
+  for (const auto& [from, to] :
+       {std::pair<std::string, std::string>{"t_s: 0.5, position_m: [-0.25", "t_s: 0.0, position_m: [-0.05"},
+        {"t_s: 2.5, position_m: [0.30", "t_s: 0.25, position_m: [0.30"}}) {
+    const std::size_t at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  }
+  std::ofstream(dir / "scene.yaml") << text;
+  const std::string scene = (dir / "scene.yaml").string();
+  const CliRun rec =
+      run("render --quiet --scene " + scene + " --frames 8 --out " + (dir / "rec").string(), dir);
+  ASSERT_EQ(rec.code, 0) << rec.err;
+  const CliRun r = run("run " + scene + " --frames 8 --compare chain-fit,paper --no-figures --quiet"
+                       " --out " + (dir / "run").string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const fs::path cf = mode_nodes(dir / "run", "chain-fit", dir / "cf.csv");
+  const fs::path paper = mode_nodes(dir / "run", "paper", dir / "paper.csv");
+  const fs::path holes = mode_nodes(dir / "run", "paper", dir / "holes.csv", {2, 5});
+  const CliRun s = run("score --truth " + (dir / "rec").string() + " --estimate mine=" +
+                       cf.string() + " --estimate theirs=" + paper.string() +
+                       " --estimate holes=" + holes.string() + " --overlays 2 --out " +
+                       out.string(), dir);
+  ASSERT_EQ(s.code, 0) << s.err;
+  EXPECT_NE(s.out.find("theirs"), std::string::npos) << s.out;  // the table
+  const auto ran = frames_by_mode(dir / "run" / "frames.csv");
+  const auto scored = frames_by_mode(out / "frames.csv");
+  ASSERT_EQ(scored.size(), 3u);
+  for (const auto& [name, mode] : {std::pair{"mine", "chain-fit"}, std::pair{"theirs", "paper"}}) {
+    const auto& a = ran.at(mode);
+    const auto& b = scored.at(name);
+    ASSERT_EQ(a.size(), 8u);
+    ASSERT_EQ(b.size(), 8u);
+    for (std::size_t f = 0; f < 8; ++f) {
+      for (const char* c : {"frame", "t_s", "n_points", "occluded_fraction", "swaps", "reversed",
+                            "lost"})
+        EXPECT_EQ(a[f].at(c), b[f].at(c)) << name << " frame " << f << " " << c;
+      for (const char* c : {"mean_err_mm", "max_err_mm", "sdf_err_mm", "polyline_err_mm",
+                            "truth_motion_mm"})
+        EXPECT_NEAR(std::stod(a[f].at(c)), std::stod(b[f].at(c)), 2e-3)
+            << name << " frame " << f << " " << c;
+      EXPECT_EQ(b[f].at("reinit"), "0");
+      EXPECT_EQ(b[f].at("time_ms"), "nan") << "the tracker ran elsewhere";
+    }
+  }
+  double hidden = 0;
+  for (const auto& row : ran.at("paper")) hidden = std::max(hidden, std::stod(row.at("occluded_fraction")));
+  EXPECT_GT(hidden, 0.05) << "the hand passes over the link";
+  std::ifstream rj(dir / "run" / "summary.json"), sj(out / "summary.json");
+  const nlohmann::json rs = nlohmann::json::parse(rj), ss = nlohmann::json::parse(sj);
+  for (const sim::EpisodeMetric& metric : sim::episode_metrics(sim::EpisodeSummary{})) {
+    const nlohmann::json& a = rs["modes"]["paper"][metric.name];
+    const nlohmann::json& b = ss["modes"]["theirs"][metric.name];
+    if (std::string(metric.name) == "reinit_count") {
+      EXPECT_EQ(b, 0) << "a tracker that ran elsewhere does not say when it re-initialized";
+      EXPECT_GT(a.get<int>(), 0) << "paper mode re-initializes as the hand passes";
+    } else if (metric.integer || a.is_null())
+      EXPECT_EQ(a, b) << metric.name;
+    else
+      EXPECT_NEAR(a.get<double>(), b.get<double>(), 2e-3) << metric.name;
+  }
+  EXPECT_EQ(ss["modes"]["holes"]["lost_frames"], 2);
+  EXPECT_EQ(ss["estimates"]["holes"], holes.string());
+  const auto& h = scored.at("holes");
+  EXPECT_EQ(h[2].at("lost"), "1");
+  EXPECT_EQ(h[5].at("lost"), "1");
+  EXPECT_EQ(h[3].at("mean_err_mm"), scored.at("theirs")[3].at("mean_err_mm"));
+  for (const char* fig : {"node_error.png", "overlay_000002.png", "overlay_000006.png"})
+    EXPECT_GT(fs::exists(out / "figures" / fig) ? fs::file_size(out / "figures" / fig) : 0u,
+              10000u)
+        << fig;
+}
+
+// score refuses, in one line naming the file (and line) or the flag, with exit 2 and no
+// output: an estimate whose node count differs from the truth's, a (frame, node) twice, a
+// coordinate that is not finite, a frame the truth does not have; a bad --estimate; a
+// recording without its truth or geometry.
+TEST_F(Cli, ScoreBadInputIsNamed) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const fs::path rec = dir / "rec";
+  ASSERT_EQ(run("render --quiet --scene " + scene + " --frames 2 --out " + rec.string(), dir).code, 0);
+  const fs::path est = dir / "est.csv";
+  auto write_est = [&](int nodes, const std::string& extra) {
+    std::ofstream os(est);
+    os << "frame,node,x_m,y_m,z_m\n";
+    for (int f = 0; f < 2; ++f)
+      for (int j = 0; j < nodes; ++j) os << f << ',' << j << ",0.01," << j * 0.045 << ",0.6\n";
+    os << extra;
+  };
+  const std::string args = "score --truth " + rec.string() + " --estimate mine=" + est.string();
+  write_est(12, "");
+  const CliRun ok = run(args + " --no-figures --quiet --out " + (dir / "ok").string(), dir);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  write_est(11, "");
+  expect_refused(args, "est.csv:2: frame 0 has 11 of the 12 nodes");
+  write_est(13, "");
+  expect_refused(args, "est.csv:14: node 12 is not among the truth's 12 nodes");
+  write_est(12, "1,3,0,0,0.6\n");
+  expect_refused(args, "est.csv:26: frame 1 node 3 given twice (first on line 17)");
+  write_est(12, "2,0,0,0,0.6\n");
+  expect_refused(args, "est.csv:26: frame 2 is not among the truth's 2 frames");
+  write_est(11, "1,11,0,inf,0.6\n");
+  expect_refused(args, "est.csv:24: y_m 'inf' is not a finite number");
+  write_est(12, "");
+  expect_refused("score --truth " + rec.string() + " --estimate mine", "--estimate 'mine': expected NAME=FILE");
+  expect_refused("score --truth " + rec.string() + " --estimate a=" + est.string() +
+                     " --estimate a=" + est.string(),
+                 "the name 'a' is given twice");
+  expect_refused("score --truth " + rec.string() + " --estimate truth=" + est.string(), "not 'truth'");
+  expect_refused(args.substr(0, args.find(" --estimate")) + " --estimate x=" + (dir / "none.csv").string(),
+                 "none.csv: cannot be read");
+  expect_refused("score --truth " + (dir / "nowhere").string() + " --estimate x=" + est.string(),
+                 "nowhere: not a directory");
+  fs::remove(rec / "chain.json");
+  expect_refused(args, "chain.json: cannot open");
 }
 
 // linksight run: the main job's outputs are complete and parse.

@@ -160,6 +160,21 @@ void Recorder::commit() {
 
 namespace {
 
+// A JSON file of a recording, or an error naming it.
+nlohmann::json read_json(const fs::path& path) {
+  const std::string file = path.string();
+  std::ifstream in(path);
+  if (!in) throw io::InputError(file + ": cannot open (a recording from `linksight render`)");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw io::InputError(file + ": malformed JSON: " + e.what());
+  }
+  if (!j.is_object()) throw io::InputError(file + ": not a JSON object");
+  return j;
+}
+
 // chain.json from ComponentGeometry's one field list: numbers only (its fields are).
 struct ChainJsonOut {
   nlohmann::json& j;
@@ -193,6 +208,15 @@ struct ChainJsonIn {
 
 }  // namespace
 
+double read_camera_fps(const fs::path& path) {
+  const nlohmann::json j = read_json(path);
+  const auto it = j.find("fps");
+  if (it == j.end()) throw io::InputError(path.string() + ": no key 'fps'");
+  if (!it->is_number() || !(it->get<double>() > 0 && it->get<double>() <= 10000))
+    throw io::InputError(path.string() + ": fps = " + it->dump() + ": must be in (0, 10000]");
+  return it->get<double>();
+}
+
 void write_chain_json(const fs::path& path, const ComponentGeometry& geometry) {
   nlohmann::json j = nlohmann::json::object();
   ChainJsonOut out{j};
@@ -202,15 +226,7 @@ void write_chain_json(const fs::path& path, const ComponentGeometry& geometry) {
 
 ComponentGeometry read_chain_json(const fs::path& path) {
   const std::string file = path.string();
-  std::ifstream in(path);
-  if (!in) throw io::InputError(file + ": cannot open (a recording from `linksight render`)");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    throw io::InputError(file + ": malformed JSON: " + e.what());
-  }
-  if (!j.is_object()) throw io::InputError(file + ": not a JSON object");
+  const nlohmann::json j = read_json(path);
   ComponentGeometry g;
   ChainJsonIn reader{j, file, {}};
   g.fields(reader);

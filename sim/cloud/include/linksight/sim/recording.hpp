@@ -41,6 +41,10 @@ void write_label_png(const std::filesystem::path& path, int width, int height,
 /// camera.json: {"X_WC": [16 numbers, row-major], "fps", "z_min_m", "z_max_m"}.
 void write_camera_json(const std::filesystem::path& path, const CameraParams& camera);
 
+/// camera.json's frame rate [Hz]. Throws io::InputError naming the file for a missing,
+/// non-numeric or non-positive fps, or malformed JSON.
+[[nodiscard]] double read_camera_fps(const std::filesystem::path& path);
+
 /// chain.json: the component geometry under the scene's `chain` keys (ball_radius_m,
 /// pitch_m, neck_radius_m, neck_length_m, count), written atomically.
 void write_chain_json(const std::filesystem::path& path, const ComponentGeometry& geometry);
