@@ -66,6 +66,7 @@ int run_run(const RunOptions& o) {
     throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 0");
   if (o.threads < 0)
     throw std::invalid_argument("--threads = " + std::to_string(o.threads) + ": must be >= 0");
+  (void)choose_overlay_frames(0, o.overlays);  // --overlays is checked before anything runs
   if (o.print_scene) {
     std::cout << sim::resolved_scene_yaml(o.scene, o.set);
     return kExitOk;

@@ -70,40 +70,52 @@ Estimate parse_estimate(const std::string& text) {
 }
 
 // The link's occluded fraction per frame, as the sensor computes it: one minus the
-// visible over the unoccluded pixels, summed over the components.
-std::vector<double> read_occlusion(const fs::path& path, std::size_t frames) {
+// visible over the unoccluded pixels, summed over the components (each once per frame).
+std::vector<double> read_occlusion(const fs::path& path, std::size_t frames, int components) {
   const std::string file = path.string();
   const io::CsvTable t = io::read_csv(path);
-  std::size_t at[3] = {0, 0, 0};
-  const char* names[3] = {"frame", "visible_px", "visible_px_unoccluded"};
-  for (int c = 0; c < 3; ++c) {
+  constexpr int kCols = 4;
+  std::size_t at[kCols] = {0, 0, 0, 0};
+  const char* names[kCols] = {"frame", "component", "visible_px", "visible_px_unoccluded"};
+  for (int c = 0; c < kCols; ++c) {
     const auto it = std::find(t.header.begin(), t.header.end(), names[c]);
     if (it == t.header.end()) throw io::InputError(file + ":1: no column '" + names[c] + "'");
     at[c] = static_cast<std::size_t>(it - t.header.begin());
   }
+  const auto n = static_cast<std::size_t>(components);
   std::vector<long> vis(frames, 0), unocc(frames, 0);
-  std::vector<bool> seen(frames, false);
+  std::vector<int> line_of(frames * n, 0);
   for (std::size_t r = 0; r < t.rows.size(); ++r) {
     const std::string where = file + ":" + std::to_string(t.lines[r]) + ": ";
-    long v[3] = {0, 0, 0};
-    for (int c = 0; c < 3; ++c) {
+    long v[kCols] = {0, 0, 0, 0};
+    for (int c = 0; c < kCols; ++c) {
       const std::string& s = t.rows[r][at[c]];
       const auto res = std::from_chars(s.data(), s.data() + s.size(), v[c]);
       if (res.ec != std::errc() || res.ptr != s.data() + s.size() || v[c] < 0 ||
           v[c] > 1'000'000'000)
         throw io::InputError(where + names[c] + " '" + s + "' is not a count");
     }
-    const auto f = static_cast<std::size_t>(v[0]);
+    const auto f = static_cast<std::size_t>(v[0]), k = static_cast<std::size_t>(v[1]);
     if (f >= frames)
       throw io::InputError(where + "frame " + std::to_string(f) + " is not among the truth's " +
                            std::to_string(frames) + " frames");
-    vis[f] += v[1];
-    unocc[f] += v[2];
-    seen[f] = true;
+    if (k >= n)
+      throw io::InputError(where + "component " + std::to_string(k) + " is not among the " +
+                           std::to_string(n) + " of chain.json");
+    if (line_of[f * n + k] != 0)
+      throw io::InputError(where + "frame " + std::to_string(f) + " component " +
+                           std::to_string(k) + " given twice (first on line " +
+                           std::to_string(line_of[f * n + k]) + ")");
+    line_of[f * n + k] = t.lines[r];
+    vis[f] += v[2];
+    unocc[f] += v[3];
   }
   std::vector<double> out(frames, 0.0);
   for (std::size_t f = 0; f < frames; ++f) {
-    if (!seen[f]) throw io::InputError(file + ": frame " + std::to_string(f) + " has no rows");
+    for (std::size_t k = 0; k < n; ++k)
+      if (line_of[f * n + k] == 0)
+        throw io::InputError(file + ": frame " + std::to_string(f) + " component " +
+                             std::to_string(k) + " has no row");
     out[f] = unocc[f] > 0 ? 1.0 - static_cast<double>(vis[f]) / static_cast<double>(unocc[f])
                           : 0.0;
   }
@@ -145,9 +157,24 @@ int run_score(const ScoreOptions& o) {
                                   "' is given twice");
   }
   const fs::path truth_dir(o.truth);
-  if (!fs::is_directory(truth_dir))
+  std::error_code ec;
+  if (!fs::is_directory(truth_dir, ec))
     throw io::InputError(o.truth + ": not a directory (--truth: a recording from `linksight "
                                    "render`)");
+  // --force replaces --out: never the recording, nor a directory holding it or in it.
+  {
+    const fs::path t = fs::weakly_canonical(truth_dir, ec);
+    const fs::path u = ec ? fs::path() : fs::weakly_canonical(fs::path(o.out), ec);
+    const auto within = [](const fs::path& a, const fs::path& b) {  // a is b or inside b
+      auto ai = a.begin(), bi = b.begin();
+      for (; bi != b.end() && !bi->empty(); ++ai, ++bi)
+        if (ai == a.end() || *ai != *bi) return false;
+      return true;
+    };
+    if (!ec && (within(u, t) || within(t, u)))
+      throw std::invalid_argument("--out " + o.out + ": must not be or hold the recording (--truth " +
+                                  o.truth + ")");
+  }
   // Everything is read and checked before any output exists.
   const ComponentGeometry geometry = sim::read_chain_json(truth_dir / "chain.json");
   const double fps = sim::read_camera_fps(truth_dir / "camera.json");
@@ -160,15 +187,20 @@ int run_score(const ScoreOptions& o) {
       throw io::InputError((truth_dir / "truth.csv").string() + ": frame " + std::to_string(f) +
                            " has no rows");
   const std::size_t n_nodes = truth[0]->size();
+  if (n_nodes != static_cast<std::size_t>(geometry.count) + 1)
+    throw io::InputError((truth_dir / "truth.csv").string() + ": " + std::to_string(n_nodes) +
+                         " nodes per frame, but chain.json has count " +
+                         std::to_string(geometry.count) + " (a node per ball and the tip: " +
+                         std::to_string(geometry.count + 1) + ")");
   const std::vector<double> times = read_truth_times(truth_dir / "truth.csv", frames);
-  const std::vector<double> occluded = read_occlusion(truth_dir / "occlusion.csv", frames);
+  const std::vector<double> occluded = read_occlusion(truth_dir / "occlusion.csv", frames, geometry.count);
   for (Estimate& e : estimates) e.frames = io::read_nodes_csv(e.file, frames, n_nodes);
   std::vector<fs::path> clouds(frames);
   for (std::size_t f = 0; f < frames; ++f) {
     char name[32];
     std::snprintf(name, sizeof name, "%06zu.ply", f);
     clouds[f] = truth_dir / "clouds" / name;
-    if (!fs::is_regular_file(clouds[f]))
+    if (!fs::is_regular_file(clouds[f], ec))
       throw io::InputError(clouds[f].string() + ": no such file (the recording's cloud of frame " +
                            std::to_string(f) + ")");
   }
@@ -187,16 +219,13 @@ int run_score(const ScoreOptions& o) {
   std::vector<float> x, y, z;
   for (std::size_t f = 0; f < frames; ++f) {
     const Cloud cloud = io::read_ply(clouds[f]);
-    // The points a tracker keeps (Tracker::step): finite, within kMaxCoordinate.
+    // The points a tracker keeps (Tracker::step), which its SDF metric is over.
     x.clear();
     y.clear();
     z.clear();
-    const auto limit = static_cast<float>(kMaxCoordinate);
     for (std::size_t i = 0; i < cloud.size(); ++i) {
       const float px = cloud.xyz[3 * i], py = cloud.xyz[3 * i + 1], pz = cloud.xyz[3 * i + 2];
-      if (!(std::isfinite(px) && std::isfinite(py) && std::isfinite(pz)) ||
-          std::abs(px) > limit || std::abs(py) > limit || std::abs(pz) > limit)
-        continue;
+      if (check_point(px, py, pz) != PointCheck::kept) continue;
       x.push_back(px);
       y.push_back(py);
       z.push_back(pz);
@@ -226,7 +255,7 @@ int run_score(const ScoreOptions& o) {
       char name[32];
       std::snprintf(name, sizeof name, "%06zu.png", f);
       const fs::path depth = truth_dir / "depth" / name;
-      std::error_code ec;
+      ec.clear();
       if (fs::is_regular_file(depth, ec))
         fs::copy_file(depth, stage / "overlays" / overlay_depth_name(static_cast<int>(f)), ec);
       if (ec) throw io::InputError(out.string() + ": cannot copy " + depth.string());

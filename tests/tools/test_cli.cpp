@@ -652,7 +652,7 @@ TEST_F(Cli, ScoreBadInputIsNamed) {
   expect_refused(args, "est.csv:26: frame 1 node 3 given twice (first on line 17)");
   write_est(12, "2,0,0,0,0.6\n");
   expect_refused(args, "est.csv:26: frame 2 is not among the truth's 2 frames");
-  write_est(11, "1,11,0,inf,0.6\n");
+  write_est(11, "0,11,0,inf,0.6\n1,11,0,0,0.6\n");
   expect_refused(args, "est.csv:24: y_m 'inf' is not a finite number");
   write_est(12, "");
   expect_refused("score --truth " + rec.string() + " --estimate mine", "--estimate 'mine': expected NAME=FILE");
@@ -664,8 +664,60 @@ TEST_F(Cli, ScoreBadInputIsNamed) {
                  "none.csv: cannot be read");
   expect_refused("score --truth " + (dir / "nowhere").string() + " --estimate x=" + est.string(),
                  "nowhere: not a directory");
+  for (const fs::path& bad_out : {rec, dir, rec / "clouds"}) {
+    const CliRun r = run(args + " --force --out " + bad_out.string(), dir);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find("must not be or hold the recording"), std::string::npos) << r.err;
+    EXPECT_TRUE(fs::exists(rec / "clouds" / "000000.ply")) << "--force must not take the recording";
+  }
+  {
+    const std::string bad = slurp_text(rec / "occlusion.csv");
+    std::ofstream(rec / "occlusion.csv") << bad << "1,4,10,10,0\n";
+    expect_refused(args, "occlusion.csv:24: frame 1 component 4 given twice (first on line 17)");
+    std::ofstream(rec / "occlusion.csv") << bad;
+  }
+  const std::string chain = slurp_text(rec / "chain.json");
+  std::string other = chain;
+  other.replace(other.find("\"count\": 11"), 11, "\"count\": 3");
+  std::ofstream(rec / "chain.json") << other;
+  expect_refused(args, "truth.csv: 12 nodes per frame, but chain.json has count 3");
+  std::ofstream(rec / "chain.json") << "{\"count\": 11, \"pitch\": 0.045}";
+  expect_refused(args, "chain.json: no key 'ball_radius_m'");
+  other = chain;
+  other.insert(1, "\"colour\": 1,");
+  std::ofstream(rec / "chain.json") << other;
+  expect_refused(args, "chain.json: unknown key 'colour'");
   fs::remove(rec / "chain.json");
   expect_refused(args, "chain.json: cannot open");
+}
+
+// An estimate given tip first is matched to the truth end to end, as run does: the truth
+// read back to front scores as the truth itself, with reversed=1.
+TEST_F(Cli, ScoreMatchesAnEstimateReadBackToFront) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const fs::path rec = dir / "rec";
+  ASSERT_EQ(run("render --quiet --scene " + scene + " --frames 2 --out " + rec.string(), dir).code, 0);
+  const auto truth = lines_of(rec / "truth.csv");  // frame,t_s,node,x_m,y_m,z_m
+  std::ofstream back(dir / "back.csv");
+  back << truth[0] << "\n";
+  for (std::size_t i = 1; i < truth.size(); ++i) {
+    int frame = 0, node = 0;
+    char t[32], rest[128];
+    ASSERT_EQ(std::sscanf(truth[i].c_str(), "%d,%31[^,],%d,%127s", &frame, t, &node, rest), 4);
+    back << frame << ',' << t << ',' << 11 - node << ',' << rest << "\n";
+  }
+  back.close();
+  const CliRun s = run("score --no-figures --quiet --truth " + rec.string() + " --estimate same=" +
+                       (rec / "truth.csv").string() + " --estimate back=" +
+                       (dir / "back.csv").string() + " --out " + out.string(), dir);
+  ASSERT_EQ(s.code, 0) << s.err;
+  const auto scored = frames_by_mode(out / "frames.csv");
+  for (std::size_t f = 0; f < 2; ++f) {
+    EXPECT_EQ(scored.at("same")[f].at("reversed"), "0");
+    EXPECT_EQ(scored.at("back")[f].at("reversed"), "1");
+    EXPECT_EQ(scored.at("same")[f].at("mean_err_mm"), "0.0000");
+    EXPECT_EQ(scored.at("back")[f].at("mean_err_mm"), "0.0000");
+  }
 }
 
 // linksight run: the main job's outputs are complete and parse.

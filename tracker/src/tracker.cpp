@@ -126,16 +126,12 @@ FrameResult Tracker::step(const Cloud& cloud, const Eigen::Isometry3d* X_CB,
   s.y.resize(n_total);
   s.z.resize(n_total);
   std::size_t n = 0;
-  const float limit = static_cast<float>(kMaxCoordinate);
   for (std::size_t i = 0; i < n_total; ++i) {
     const float px = cloud.xyz[3 * i], py = cloud.xyz[3 * i + 1], pz = cloud.xyz[3 * i + 2];
-    if (!(std::isfinite(px) && std::isfinite(py) && std::isfinite(pz))) {
-      ++r.n_non_finite;
-      continue;
-    }
     // Beyond kMaxCoordinate the fixed-point sums could overflow.
-    if (std::abs(px) > limit || std::abs(py) > limit || std::abs(pz) > limit) {
-      ++r.n_out_of_range;
+    const PointCheck check = check_point(px, py, pz);
+    if (check != PointCheck::kept) {
+      ++(check == PointCheck::non_finite ? r.n_non_finite : r.n_out_of_range);
       continue;
     }
     s.x[n] = px;

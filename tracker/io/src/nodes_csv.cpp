@@ -8,14 +8,18 @@
 
 #include "linksight/io/csv.hpp"
 #include "linksight/io/error.hpp"
+#include "linksight/tracker/backend.hpp"
+#include "linksight/tracker/format.hpp"
 
 namespace linksight::io {
 namespace {
 
 constexpr std::array<const char*, 5> kColumns = {"frame", "node", "x_m", "y_m", "z_m"};
-// An index larger than this is not a frame or node of any recording (and would make the
-// table's allocation the file's choice).
+// A frame index larger than this is not a frame of any recording (a million frames: 9 h
+// at 30 fps), nor a node index larger than kMaxNode (a chain has at most 100 components):
+// the table's allocation is not the file's choice.
 constexpr std::size_t kMaxIndex = 1'000'000;
+constexpr std::size_t kMaxNode = 1'000;
 
 std::size_t index_of(const std::string& s, const std::string& where, const char* what) {
   std::size_t v = 0;
@@ -52,6 +56,9 @@ std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& pa
     const std::string where = file + ":" + std::to_string(t.lines[r]) + ": ";
     frame_of[r] = index_of(t.rows[r][at[0]], where, "frame");
     node_of[r] = index_of(t.rows[r][at[1]], where, "node");
+    if (node_of[r] > kMaxNode)
+      throw InputError(where + "node " + std::to_string(node_of[r]) + " is more than " +
+                       std::to_string(kMaxNode) + " (not a node of a chain)");
     if (frames != 0 && frame_of[r] >= frames)
       throw InputError(where + "frame " + std::to_string(frame_of[r]) +
                        " is not among the truth's " + std::to_string(frames) + " frames");
@@ -62,6 +69,18 @@ std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& pa
     if (frames == 0) n_frames = std::max(n_frames, frame_of[r] + 1);
     if (nodes == 0) n_nodes = std::max(n_nodes, node_of[r] + 1);
   }
+
+  // Rows per frame before any frame's nodes are allocated: a frame with fewer rows than
+  // nodes is refused here, so the table is never larger than the file's rows.
+  std::vector<std::size_t> rows_of(n_frames, 0);
+  std::vector<int> first_row(n_frames, 0);
+  for (std::size_t r = 0; r < t.rows.size(); ++r)
+    if (rows_of[frame_of[r]]++ == 0) first_row[frame_of[r]] = t.lines[r];
+  for (std::size_t f = 0; f < n_frames; ++f)
+    if (rows_of[f] != 0 && rows_of[f] < n_nodes)
+      throw InputError(file + ":" + std::to_string(first_row[f]) + ": frame " +
+                       std::to_string(f) + " has " + std::to_string(rows_of[f]) + " of the " +
+                       std::to_string(n_nodes) + " nodes");
 
   std::vector<std::optional<Nodes>> out(n_frames);
   std::vector<std::vector<int>> line_of(n_frames);
@@ -87,6 +106,9 @@ std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& pa
       const auto rv = std::from_chars(s.data(), s.data() + s.size(), x);
       if (rv.ec != std::errc() || rv.ptr != s.data() + s.size() || !std::isfinite(x))
         throw InputError(where + kColumns[c] + " '" + s + "' is not a finite number");
+      if (std::abs(x) > kMaxCoordinate)
+        throw InputError(where + kColumns[c] + " '" + s + "' is beyond " +
+                         format_shortest(kMaxCoordinate) + " m (a tracker's limit)");
       (*out[f])[j][static_cast<Eigen::Index>(c - 2)] = x;
     }
   }

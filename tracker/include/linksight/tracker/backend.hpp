@@ -2,6 +2,8 @@
 /// @file Back ends for the data-parallel part of one SOM iteration: association
 /// (Eq. 11) and per-node accumulation for the mean (Eq. 12).
 
+#include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -60,6 +62,16 @@ inline constexpr double kFixedPerMetre = 4294967296.0;  // 2^32
 /// kMaxPoints points, no sum can overflow (2^24 * 100 m * 2^32 < 2^63).
 inline constexpr double kMaxCoordinate = 100.0;  // [m]
 inline constexpr std::size_t kMaxPoints = std::size_t{1} << 24;
+
+/// Whether the tracker keeps a point of a cloud [m]: finite, and within kMaxCoordinate.
+enum class PointCheck { kept, non_finite, out_of_range };
+[[nodiscard]] inline PointCheck check_point(float x, float y, float z) {
+  if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) return PointCheck::non_finite;
+  constexpr auto limit = static_cast<float>(kMaxCoordinate);
+  if (std::abs(x) > limit || std::abs(y) > limit || std::abs(z) > limit)
+    return PointCheck::out_of_range;
+  return PointCheck::kept;
+}
 
 /// Per-node sums of one association pass.
 struct Accumulation {
