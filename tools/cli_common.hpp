@@ -13,6 +13,7 @@
 #include "linksight/io/frames.hpp"
 #include "linksight/io/intrinsics.hpp"
 #include "linksight/sim/depth_stats.hpp"
+#include "linksight/sim/external_tracker.hpp"
 #include "linksight/tracker/tracker.hpp"
 #include <nlohmann/json.hpp>
 
@@ -31,6 +32,51 @@ inline std::vector<TrackerMode> parse_compare(const std::string& list) {
     }
   }
   return modes;
+}
+
+/// --compare and --tracker NAME=COMMAND into built-in modes and external trackers: an item
+/// of `compare` is a --tracker's NAME or a mode. Empty `compare`: no mode given (the
+/// scene's) and every --tracker. A --tracker that --compare does not name is refused.
+inline void split_compare(const std::string& compare, const std::vector<std::string>& trackers,
+                          std::vector<TrackerMode>& modes,
+                          std::vector<sim::ExternalTrackerSpec>& external) {
+  std::vector<sim::ExternalTrackerSpec> given;
+  for (const std::string& t : trackers) {
+    given.push_back(sim::parse_external_tracker(t));
+    for (std::size_t j = 0; j + 1 < given.size(); ++j)
+      if (given[j].name == given.back().name)
+        throw std::invalid_argument("--tracker '" + t + "': the name '" + given.back().name +
+                                    "' is given twice");
+  }
+  modes.clear();
+  external.clear();
+  if (compare.empty()) {
+    external = given;
+    return;
+  }
+  std::vector<bool> used(given.size(), false);
+  std::stringstream ss(compare);
+  for (std::string item; std::getline(ss, item, ',');) {
+    if (item.empty()) throw std::invalid_argument("--compare '" + compare + "': empty name");
+    std::size_t k = 0;
+    while (k < given.size() && given[k].name != item) ++k;
+    if (k < given.size()) {
+      if (used[k]) throw std::invalid_argument("--compare: '" + item + "' given twice");
+      used[k] = true;
+      external.push_back(given[k]);
+      continue;
+    }
+    try {
+      modes.push_back(parse_mode(item));
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("--compare: ") + e.what() +
+                                  (given.empty() ? "" : ", or a --tracker NAME"));
+    }
+  }
+  for (std::size_t k = 0; k < given.size(); ++k)
+    if (!used[k])
+      throw std::invalid_argument("--tracker '" + given[k].name + "=...': not in --compare '" +
+                                  compare + "'");
 }
 
 /// The 16-bit depth PNGs of `frames` (a directory or one file), each checked against the

@@ -40,7 +40,8 @@ struct RunOptions {
   std::string scene;
   std::string out;  // empty: out/run/<scene name>
   std::vector<std::string> set;
-  std::string compare;  // empty: the scene's mode
+  std::string compare;  // empty: the scene's mode (and every --tracker)
+  std::vector<std::string> trackers;  // --tracker NAME=COMMAND
   int frames = 0;
   int threads = 0;
   int overlays = 4;
@@ -75,7 +76,7 @@ int run_run(const RunOptions& o) {
   sim::EpisodeOptions eo;
   eo.frames = o.frames;
   eo.threads = o.threads;
-  if (!o.compare.empty()) eo.modes = parse_compare(o.compare);
+  split_compare(o.compare, o.trackers, eo.modes, eo.external);
   const std::set<int> overlay_frames =
       choose_overlay_frames(sim::camera_frames(scene, o.frames), o.overlays);
   // Nothing but the overlays' depth images is written, so the other frames need only the
@@ -86,9 +87,10 @@ int run_run(const RunOptions& o) {
   const fs::path out = o.out.empty() ? fs::path("out/run") / fs::path(o.scene).stem() : fs::path(o.out);
   io::StagedDir dir(out, o.force);
   const fs::path stage = dir.path();
-  std::vector<std::string> names;
-  for (const TrackerMode m : episode.modes()) names.emplace_back(to_string(m));
+  const std::vector<std::string> names = episode.names();
   RunReport report(stage, out, names);
+  // Per tracker, its lost frames' reasons in words (external trackers).
+  std::vector<nlohmann::json> lost_notes(names.size(), nlohmann::json::array());
 
   const int n = episode.frames();
   const io::Intrinsics& K = scene.camera.intrinsics;
@@ -106,6 +108,9 @@ int run_run(const RunOptions& o) {
     const ReportFrame rf{f.frame, f.t, f.cloud->size(), f.image->link_occluded_fraction,
                          f.truth_motion, &f.truth_C};
     report.add(rf, f.results, f.scores);
+    for (std::size_t k = 0; k < names.size(); ++k)
+      if (!f.lost_details[k].empty())
+        lost_notes[k].push_back({{"frame", f.frame}, {"reason", f.lost_details[k]}});
     if (overlay_frames.count(f.frame)) {
       io::write_depth_png(stage / "overlays" / overlay_depth_name(f.frame), f.image->depth);
       report.overlay(rf, K, f.results);
@@ -138,6 +143,11 @@ int run_run(const RunOptions& o) {
         {"wall", done ? wall / done * 1e3 : 0.0}}},
   };
   summary["modes"] = report.modes_json(summaries);
+  for (std::size_t k = 0; k < eo.external.size(); ++k) {
+    const std::size_t at = eo.modes.empty() ? 1 + k : eo.modes.size() + k;
+    summary["modes"][names[at]]["external"] = {{"command", eo.external[k].command},
+                                               {"lost_frames", lost_notes[at]}};
+  }
   io::write_file_atomic(stage / "summary.json", [&](std::ostream& os) {
     os << summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   });
@@ -155,6 +165,12 @@ int run_run(const RunOptions& o) {
     std::cout << (done < n ? "interrupted after " : "ran ") << done << " frames of " << o.scene
               << " (" << format_fixed(done / std::max(wall, 1e-9), 1) << " frames/s)\n";
     report.print_table(std::cout, summaries);
+    for (std::size_t k = 0; k < names.size(); ++k)
+      if (!lost_notes[k].empty())
+        std::cerr << "linksight: warning: " << names[k] << ": " << lost_notes[k].size()
+                  << " frame(s) lost, the first (frame " << lost_notes[k][0]["frame"].get<int>()
+                  << "): " << lost_notes[k][0]["reason"].get<std::string>()
+                  << " (all in summary.json)\n";
     std::cout << "wrote " << out.string() << "/{frames.csv,nodes.csv,summary.json}"
               << (figures_note.empty() && o.figures ? ", figures in " + out.string() + "/figures/"
                                                     : std::string())
@@ -173,8 +189,13 @@ Runner add_run(CLI::App& app) {
                  "override a scene key: key.path=value (repeatable), e.g. --set camera.fps=60 "
                  "--set 'occluders[0].reflectance=0.5'");
   app.add_option("--compare", o->compare,
-                 "tracker modes to run on the same frames, comma-separated, of: " +
-                     mode_choices() + " (default: the scene's tracker.mode)");
+                 "trackers to run on the same frames, comma-separated: modes (" +
+                     mode_choices() + ") and --tracker NAMEs; the modes come first in the "
+                     "tables (default: the scene's tracker.mode and every --tracker)");
+  app.add_option("--tracker", o->trackers,
+                 "NAME=COMMAND (repeatable): a tracker outside linksight, started once per "
+                 "episode with /bin/sh -c COMMAND and fed each frame on its stdin "
+                 "(docs/protocol.md); compare it by NAME in --compare");
   app.add_option("--frames", o->frames, "camera frames (0: the scene's duration)")
       ->capture_default_str();
   app.add_option("--threads", o->threads, "OpenMP threads for the sensor (0: default)")

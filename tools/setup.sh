@@ -30,6 +30,7 @@ case "$what" in
   all) packages+=(
          libgtest-dev       # tests
          libbenchmark-dev   # bench/
+         python3-numpy      # tools/trackers/som.py, the external-tracker tests' reference client
          slurm-wlm munge    # the slurm ctest: a real single-node Slurm (slurmctld, slurmd, sbatch) and munge
        )
        configure=(-DLINKSIGHT_BUILD_TESTS=ON -DLINKSIGHT_BUILD_BENCH=ON)

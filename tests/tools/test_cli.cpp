@@ -720,6 +720,115 @@ TEST_F(Cli, ScoreMatchesAnEstimateReadBackToFront) {
   }
 }
 
+// --tracker: the paper's SOM written in numpy (tools/trackers/som.py), run as a process
+// over the pipe protocol, scores as the built-in paper mode on the same frames, through a
+// hand passing over the link (re-initializations included): the protocol carries the
+// frames faithfully. Its time is the pipe's and the interpreter's too.
+TEST_F(Cli, ExternalSomClientScoresAsThePaperMode) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/occluder_pass.yaml";
+  const std::string som = std::string(LINKSIGHT_PYTHON3) + " " + LINKSIGHT_TRACKERS_DIR + "/som.py";
+  const CliRun r = run("run " + scene + " --frames 90 --tracker 'som=" + som +
+                       "' --compare paper,som --no-figures --out " + out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("som"), std::string::npos) << r.out;
+  std::ifstream js(out / "summary.json");
+  const nlohmann::json j = nlohmann::json::parse(js);
+  const auto& paper = j["modes"]["paper"];
+  const auto& ext = j["modes"]["som"];
+  EXPECT_GT(paper["reinit_count"].get<int>(), 0) << "the hand empties a neighbourhood";
+  EXPECT_EQ(ext["reinit_count"], paper["reinit_count"]) << "som.py reports its reinit";
+  EXPECT_NEAR(ext["node_err_mean_mm"].get<double>(), paper["node_err_mean_mm"].get<double>(), 0.1);
+  EXPECT_NEAR(ext["node_err_max_mm"].get<double>(), paper["node_err_max_mm"].get<double>(), 0.1);
+  EXPECT_EQ(ext["swaps"], paper["swaps"]);
+  EXPECT_EQ(ext["lost_frames"], 0);
+  EXPECT_EQ(ext["external"]["command"], som);
+  EXPECT_GT(ext["time_ms"]["mean"].get<double>(), 0.0);
+  const auto frames = frames_by_mode(out / "frames.csv");
+  ASSERT_EQ(frames.at("som").size(), 90u);
+  for (std::size_t f = 0; f < 90; ++f)
+    EXPECT_NEAR(std::stod(frames.at("som")[f].at("mean_err_mm")),
+                std::stod(frames.at("paper")[f].at("mean_err_mm")), 0.1)
+        << "frame " << f;
+}
+
+// A tracker that breaks the protocol: while its process lives, a malformed answer is that
+// frame lost, with the reason in summary.json; when it dies, hangs or stops reading, run
+// stops with exit 2, an error naming the tracker, the frame and what it did (its stderr's
+// end quoted), and no output; its process is reaped either way.
+TEST_F(Cli, ExternalTrackerFailuresAreNamed) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const std::string broken =
+      std::string(LINKSIGHT_PYTHON3) + " " + LINKSIGHT_TEST_TOOLS_DIR + "/broken_tracker.py";
+  const auto with = [&](const std::string& how) {
+    return "run " + scene + " --frames 6 --no-figures --set external.timeout_s=3 --tracker 'bad=" +
+           broken + " " + how + "' --compare paper,bad";
+  };
+  for (const auto& [how, says] : std::vector<std::pair<std::string, std::string>>{
+           {"crash", "frame 3: closed its output before answering (it exited with status 3); "
+                     "its stderr ends:\n  broken_tracker: giving up at frame 3"},
+           {"exit", "frame 3: closed its output before answering (it exited with status 0)"},
+           {"hang", "frame 3: did not answer within 3 s (scene key external.timeout_s)"},
+           {"deaf", "frame 3: did not read the frame within 3 s"}}) {
+    const CliRun r = run(with(how) + " --out " + out.string(), dir);
+    EXPECT_EQ(r.code, 2) << how << ": " << r.err;
+    EXPECT_NE(r.err.find("external tracker 'bad' (" + broken + " " + how + "): " + says),
+              std::string::npos)
+        << how << ": " << r.err;
+    EXPECT_FALSE(fs::exists(out)) << how << ": no partial output";
+  }
+  for (const auto& [how, says] : std::vector<std::pair<std::string, std::string>>{
+           {"garbage", "the answer is not JSON: 'hello, linksight'"},
+           {"count", "the answer has 11 nodes, expected 12"},
+           {"nan", "node 5 has a coordinate that is not a finite number within 100 m"},
+           {"other", "the answer is not for frame 3"},
+           {"lost", "the tracker says lost: 'the link left my view'"}}) {
+    const fs::path o = dir / how;
+    const CliRun r = run(with(how) + " --out " + o.string(), dir);
+    ASSERT_EQ(r.code, 0) << how << ": " << r.err;
+    EXPECT_NE(r.err.find("warning: bad: 1 frame(s) lost, the first (frame 3): " + says),
+              std::string::npos)
+        << how << ": " << r.err;
+    std::ifstream js(o / "summary.json");
+    const nlohmann::json j = nlohmann::json::parse(js);
+    const auto& m = j["modes"]["bad"];
+    EXPECT_EQ(m["lost_frames"], 1) << how;
+    ASSERT_EQ(m["external"]["lost_frames"].size(), 1u) << how;
+    EXPECT_EQ(m["external"]["lost_frames"][0]["frame"], 3) << how;
+    EXPECT_NE(m["external"]["lost_frames"][0]["reason"].get<std::string>().find(says),
+              std::string::npos)
+        << how;
+    EXPECT_EQ(frames_by_mode(o / "frames.csv").at("bad")[3].at("lost"), "1") << how;
+    EXPECT_EQ(frames_by_mode(o / "frames.csv").at("bad")[4].at("lost"), "0") << how;
+  }
+  // Every process reaped: none of the broken trackers is left, running or a zombie.
+  const int left = std::system("ps -eo args | grep -q '[b]roken_tracker.py'");
+  EXPECT_NE(WEXITSTATUS(left), 0) << "a broken tracker's process was left behind";
+}
+
+// --tracker and --compare: names are checked, and a tracker --compare leaves out is refused.
+TEST_F(Cli, ExternalTrackerFlagsAreChecked) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const auto bad = [&](const std::string& args, const std::string& names) {
+    expect_refused("run " + scene + " --frames 1 --no-figures " + args, names);
+  };
+  bad("--tracker mine", "--tracker 'mine': expected NAME=COMMAND");
+  bad("--tracker 'paper=true'", "'paper' is a built-in mode's name");
+  bad("--tracker 'a b=true'", "the name 'a b' must be");
+  bad("--tracker 'x=true' --tracker 'x=false'", "the name 'x' is given twice");
+  bad("--tracker 'x=true' --compare paper", "--tracker 'x=...': not in --compare 'paper'");
+  bad("--tracker 'x=true' --compare paper,y", "unknown mode 'y'");
+  bad("--set external.timeout_s=0", "external.timeout_s = 0: must be in");
+  // A command that cannot run: the shell's own complaint is quoted.
+  const CliRun r = run("run " + scene + " --frames 1 --no-figures --tracker 'x=/nonexistent/tracker'"
+                       " --out " + out.string(), dir);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("external tracker 'x' (/nonexistent/tracker): frame 0: "), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("exited with status 127"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("/nonexistent/tracker: not found"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 // linksight run: the main job's outputs are complete and parse.
 TEST_F(Cli, RunWritesScoresSummaryAndFigures) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";

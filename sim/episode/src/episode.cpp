@@ -46,6 +46,16 @@ void EpisodeOptions::validate() const {
       if (modes[i] == modes[j])
         throw std::invalid_argument("episode modes: " + std::string(to_string(modes[i])) +
                                     " given twice");
+  for (std::size_t i = 0; i < external.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j)
+      if (external[i].name == external[j].name)
+        throw std::invalid_argument("episode external trackers: " + external[i].name +
+                                    " given twice");
+    for (const TrackerMode m : modes)
+      if (to_string(m) == external[i].name)
+        throw std::invalid_argument("episode external tracker " + external[i].name +
+                                    ": a mode's name");
+  }
   score.validate();
 }
 
@@ -56,6 +66,8 @@ struct Episode::Impl {
   std::unique_ptr<World> world;
   std::unique_ptr<Sensor> sensor;
   std::vector<Tracker> trackers;
+  // After the modes' trackers, in results: the external trackers' processes.
+  std::vector<std::unique_ptr<ExternalTracker>> external;
   std::vector<EpisodeScorer> scorers;
   Eigen::Isometry3d X_CW;
   // tracker.base_prior: the error of the base pose the trackers are given, drawn once per
@@ -107,6 +119,13 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
   }
   m.X_CW = scene.camera.X_WC.inverse();
   if (scene.tracker.base_prior.enabled) m.X_BBprior = base_prior_error(scene);
+  // Started last, after everything that can refuse the scene: a process per tracker.
+  for (const ExternalTrackerSpec& spec : options.external) {
+    m.external.push_back(std::make_unique<ExternalTracker>(
+        spec, scene.external, scene.tracker.nodes, scene.camera.intrinsics,
+        scene.tracker.geometry, scene.tracker.base_prior));
+    m.scorers.emplace_back(options.score);
+  }
 }
 
 Episode::~Episode() {
@@ -122,6 +141,12 @@ Episode::~Episode() {
 int Episode::frames() const { return impl_->frames; }
 int Episode::done() const { return impl_->done; }
 const std::vector<TrackerMode>& Episode::modes() const { return impl_->modes; }
+std::vector<std::string> Episode::names() const {
+  std::vector<std::string> out;
+  for (const TrackerMode m : impl_->modes) out.emplace_back(to_string(m));
+  for (const auto& e : impl_->external) out.push_back(e->spec().name);
+  return out;
+}
 const EpisodeTimes& Episode::last_times() const { return impl_->times; }
 
 const EpisodeFrame& Episode::step() {
@@ -186,13 +211,25 @@ const EpisodeFrame& Episode::step_frame() {
   if (K.model == io::Distortion::none && m.image.width > 0)
     m.depth = DepthView{m.image.width, m.image.height, m.image.depth_m, K.fx, K.fy, K.cx, K.cy};
 
-  o.results.resize(m.trackers.size());
-  o.scores.resize(m.trackers.size());
+  const std::size_t n_trackers = m.trackers.size() + m.external.size();
+  o.results.resize(n_trackers);
+  o.scores.resize(n_trackers);
+  o.lost_details.assign(n_trackers, std::string());
   double scoring = 0;
-  for (std::size_t k = 0; k < m.trackers.size(); ++k) {
+  for (std::size_t k = 0; k < n_trackers; ++k) {
     // Its own time is in FrameResult::time_s.
-    o.results[k] = m.trackers[k].step(m.cloud, o.base_prior_C ? &*o.base_prior_C : nullptr,
-                                      m.depth ? &*m.depth : nullptr);
+    const Eigen::Isometry3d* X_CB = o.base_prior_C ? &*o.base_prior_C : nullptr;
+    if (k < m.trackers.size()) {
+      o.results[k] = m.trackers[k].step(m.cloud, X_CB, m.depth ? &*m.depth : nullptr);
+    } else {
+      ExternalTracker& e = *m.external[k - m.trackers.size()];
+      o.results[k] = e.step(ExternalFrameInput{f, o.t, &m.cloud, X_CB});
+      o.lost_details[k] = e.lost_detail();
+      // Its SDF metric as a mode's: over the points a tracker keeps.
+      if (!o.results[k].lost)
+        o.results[k].sdf_error = cloud_sdf_error(m.cloud, o.results[k].nodes,
+                                                 m.scene.tracker.geometry);
+    }
     t0 = std::chrono::steady_clock::now();
     const FrameResult& r = o.results[k];
     o.scores[k] = score_frame(r.lost ? Nodes{} : r.nodes, o.truth_C);

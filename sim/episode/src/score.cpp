@@ -1,5 +1,8 @@
 #include "linksight/sim/score.hpp"
 
+#include "linksight/tracker/backend.hpp"
+#include "linksight/tracker/sdf.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -221,6 +224,21 @@ std::vector<EpisodeMetric> episode_metrics(const EpisodeSummary& s) {
           {"events_recovered", static_cast<double>(recovered), true},
           {"recover_frames_max", recover_max < 0 ? kNaN : static_cast<double>(recover_max), true},
           {"non_finite_nodes", static_cast<double>(s.non_finite_nodes), true}};
+}
+
+double cloud_sdf_error(const Cloud& cloud, const Nodes& nodes, const ComponentGeometry& geometry) {
+  std::vector<float> x, y, z;
+  x.reserve(cloud.size());
+  y.reserve(cloud.size());
+  z.reserve(cloud.size());
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const float px = cloud.xyz[3 * i], py = cloud.xyz[3 * i + 1], pz = cloud.xyz[3 * i + 2];
+    if (check_point(px, py, pz) != PointCheck::kept) continue;
+    x.push_back(px);
+    y.push_back(py);
+    z.push_back(pz);
+  }
+  return sdf_error(PointsView{x, y, z}, nodes, geometry);
 }
 
 }  // namespace linksight::sim

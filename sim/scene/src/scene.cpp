@@ -274,7 +274,7 @@ void read_occlusion(const Reader& r, const YAML::Node& o, Scene& s) {
 
 const std::set<std::string> kTopKeys = {
     "duration_s", "seed",  "camera", "noise",   "occluders", "occlusion", "background",
-    "segmentation", "chain", "world", "base", "actions", "tracker"};
+    "segmentation", "chain", "world", "base", "actions", "tracker", "external"};
 
 // The scene and the YAML tree it was read from (after the overrides).
 std::pair<Scene, YAML::Node> load(const std::filesystem::path& path,
@@ -313,6 +313,10 @@ std::pair<Scene, YAML::Node> load(const std::filesystem::path& path,
   const YAML::Node tracker = root["tracker"] ? root["tracker"] : root;
   if (root["tracker"]) yaml::read(r, tracker, "tracker", s.tracker);
   yaml::validated(r, tracker, "tracker", [&] { s.tracker.validate(); });
+  if (const YAML::Node e = root["external"]) {
+    yaml::read(r, e, "external", s.external);
+    yaml::validated(r, e, "external", [&] { s.external.validate(); });
+  }
   return {std::move(s), root};
 }
 
@@ -348,6 +352,7 @@ std::string resolved_scene_yaml(const std::filesystem::path& path,
   yaml::write(y, "world", s.world);
   yaml::write(y, "occlusion", s.occlusion);
   yaml::write(y, "tracker", s.tracker);
+  yaml::write(y, "external", s.external);
   // A mesh path is relative to the scene's folder: write the file it resolved to, so the
   // printed scene loads from anywhere.
   const auto resolve_meshes = [](YAML::Node list, auto shape_of) {

@@ -161,7 +161,7 @@ Intrinsics read_intrinsics(const std::filesystem::path& path) {
   return k;
 }
 
-void write_intrinsics(const std::filesystem::path& path, const Intrinsics& k) {
+std::string intrinsics_json(const Intrinsics& k, int indent) {
   nlohmann::json j = {
       {"width", k.width}, {"height", k.height},          {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx},
       {"cy", k.cy},       {"depth_scale", k.depth_scale}};
@@ -169,7 +169,11 @@ void write_intrinsics(const std::filesystem::path& path, const Intrinsics& k) {
     j["model"] = to_string(k.model);
     j["coeffs"] = k.coeffs;
   }
-  write_file_atomic(path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+  return j.dump(indent);
+}
+
+void write_intrinsics(const std::filesystem::path& path, const Intrinsics& k) {
+  write_file_atomic(path, [&](std::ostream& out) { out << intrinsics_json(k, 2) << "\n"; });
 }
 
 }  // namespace linksight::io

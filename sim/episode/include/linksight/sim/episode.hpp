@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "linksight/sim/external_tracker.hpp"
 #include "linksight/sim/scene.hpp"
 #include "linksight/sim/score.hpp"
 #include "linksight/tracker/tracker.hpp"
@@ -19,6 +20,10 @@ struct EpisodeOptions {
   /// Tracker modes to compare on the same frames; empty: the scene's own mode. Each runs
   /// with the scene's tracker settings and only the mode changed.
   std::vector<TrackerMode> modes;
+  /// Trackers outside linksight (issue 18), compared after the modes, in this order: each
+  /// started once per episode (a process, docs/protocol.md) with the scene's `external`
+  /// settings. Names must differ from each other and from the modes'.
+  std::vector<ExternalTrackerSpec> external;
   int threads = 0;  ///< sensor threads (0: the OpenMP default)
   /// When the scene segments by label (ExtractParams::Mode::truth), render only the
   /// pixels the cloud can be made of: the chain's box grown by the leakage margin (see
@@ -52,8 +57,11 @@ struct EpisodeFrame {
   std::optional<Eigen::Isometry3d> base_prior_C;
   const DepthFrame* image = nullptr;
   const Cloud* cloud = nullptr;
-  std::vector<FrameResult> results;  ///< per compared mode, camera frame
-  std::vector<FrameScore> scores;    ///< per compared mode
+  std::vector<FrameResult> results;  ///< per compared tracker (names()), camera frame
+  std::vector<FrameScore> scores;    ///< per compared tracker
+  /// Per compared tracker, why its frame was lost in words (an external tracker's
+  /// malformed answer or its own reason); "" when not lost or a built-in mode's.
+  std::vector<std::string> lost_details;
 };
 
 /// The error of the base pose an episode gives its trackers (tracker.base_prior): drawn
@@ -73,11 +81,15 @@ class Episode {
   [[nodiscard]] int frames() const;  ///< frames the episode will run
   [[nodiscard]] int done() const;    ///< frames run so far
   [[nodiscard]] const std::vector<TrackerMode>& modes() const;
+  /// Every compared tracker's name, as results are ordered: the modes', then the external
+  /// trackers'.
+  [[nodiscard]] std::vector<std::string> names() const;
   /// Runs the next frame. Precondition: done() < frames(). After a step that threw (a
-  /// tracker, the sensor, the world), the episode is spent: step() throws logic_error.
+  /// tracker, the sensor, the world), the episode is spent: step() throws logic_error. An
+  /// external tracker that dies or hangs throws ExternalTrackerError.
   const EpisodeFrame& step();
   [[nodiscard]] const EpisodeTimes& last_times() const;
-  /// Per mode, over the frames run so far.
+  /// Per compared tracker (names()), over the frames run so far.
   [[nodiscard]] std::vector<EpisodeSummary> summaries() const;
 
  private:

@@ -7,6 +7,8 @@
 #include <limits>
 #include <vector>
 
+#include "linksight/tracker/cloud.hpp"
+#include "linksight/tracker/geometry.hpp"
 #include "linksight/tracker/model.hpp"
 
 namespace linksight::sim {
@@ -47,6 +49,12 @@ struct FrameScore {
 /// Scores `estimate` against `truth` (same node count). An empty estimate (a lost frame)
 /// gives NaN errors. Throws std::invalid_argument when the counts differ otherwise.
 [[nodiscard]] FrameScore score_frame(const Nodes& estimate, const Nodes& truth);
+
+/// The paper's SDF metric (Eq. 16, linksight::sdf_error) of `nodes` over the points of
+/// `cloud` a tracker keeps (finite, within kMaxCoordinate) [m]: what a built-in mode
+/// reports as FrameResult::sdf_error, for nodes from elsewhere.
+[[nodiscard]] double cloud_sdf_error(const Cloud& cloud, const Nodes& nodes,
+                                     const ComponentGeometry& geometry);
 
 /// What an episode's scoring counts as an event, and as recovered.
 struct ScoreParams {

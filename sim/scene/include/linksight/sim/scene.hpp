@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "linksight/sim/camera.hpp"
+#include "linksight/sim/external_tracker.hpp"
 #include "linksight/sim/extract.hpp"
 #include "linksight/sim/noise.hpp"
 #include "linksight/sim/occlusion.hpp"
@@ -39,6 +40,9 @@ struct Scene {
   /// The tracker run on the scene's frames (key `tracker`). Its geometry and pitch are
   /// the chain's; `--compare` in `linksight run` adds other modes with the same settings.
   TrackerParams tracker;
+  /// How long a tracker outside linksight may take (key `external`); which one runs is the
+  /// command line's choice only (`--tracker`), never the scene's.
+  ExternalParams external;
 };
 
 /// Camera frames in the scene: `requested` if > 0, else every frame of duration_s

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <filesystem>
+#include <string>
 #include <string_view>
 
 namespace linksight::io {
@@ -41,5 +42,7 @@ struct Intrinsics {
 /// (5 numbers). Unknown keys are errors. Throws InputError naming the file and key.
 [[nodiscard]] Intrinsics read_intrinsics(const std::filesystem::path& path);
 void write_intrinsics(const std::filesystem::path& path, const Intrinsics& intrinsics);
+/// The JSON object intrinsics.json holds (`indent` < 0: one line).
+[[nodiscard]] std::string intrinsics_json(const Intrinsics& intrinsics, int indent = -1);
 
 }  // namespace linksight::io

@@ -1,0 +1,109 @@
+#pragma once
+/// @file A tracker outside linksight (issue 18, part 2): a program started once per
+/// episode from a command given on the command line (never from a scene, grid or
+/// recording), fed one frame at a time on its stdin and answering on its stdout, as
+/// docs/protocol.md specifies (version kExternalProtocol). Frames go in order and each
+/// waits for its answer, so results do not depend on the tracker's timing.
+
+#include <Eigen/Geometry>
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <sys/types.h>
+
+#include "linksight/io/error.hpp"
+#include "linksight/io/intrinsics.hpp"
+#include "linksight/tracker/cloud.hpp"
+#include "linksight/tracker/fields.hpp"
+#include "linksight/tracker/tracker.hpp"
+
+namespace linksight::sim {
+
+/// The protocol's version: the `linksight` key of every frame's header.
+inline constexpr int kExternalProtocol = 1;
+
+/// A tracker as the command line names it: `--tracker NAME=COMMAND`.
+struct ExternalTrackerSpec {
+  std::string name;     ///< what tables and figures call it
+  std::string command;  ///< run by /bin/sh -c, in the current directory
+};
+
+/// Parses "NAME=COMMAND". Throws std::invalid_argument naming `flag` and the text: a name
+/// is 1-40 letters, digits, '-', '_' or '.', and may not be a built-in mode's or "truth".
+[[nodiscard]] ExternalTrackerSpec parse_external_tracker(const std::string& text,
+                                                         const std::string& flag = "--tracker");
+
+/// Scene key `external`: how long an external tracker may take.
+struct ExternalParams {
+  /// Per frame, from the first byte sent to the answer's end (the first frame includes
+  /// the program's start: an interpreter loading its libraries) [s].
+  double timeout_s = 60.0;
+  template <class Archive>
+  void fields(Archive& ar) {
+    ar("timeout_s", timeout_s, fields::in(0.01, 86400));
+  }
+  void validate() const;  ///< throws fields::FieldError naming the key
+};
+
+/// The tracker's process died, hung past the timeout, could not be started, or broke the
+/// protocol's framing: what() names the tracker, the frame and what it did, and ends with
+/// the last lines of its stderr.
+class ExternalTrackerError : public io::InputError {
+ public:
+  using io::InputError::InputError;
+};
+
+/// One frame as the tracker is given it.
+struct ExternalFrameInput {
+  int frame = 0;
+  double t = 0;                               ///< [s]
+  const Cloud* cloud = nullptr;               ///< camera frame [m]
+  const Eigen::Isometry3d* X_CB = nullptr;    ///< the base pose prior, when given
+};
+
+class ExternalTracker {
+ public:
+  /// Starts the process. `nodes`: how many nodes an answer must give; `K` and `geometry`:
+  /// the camera and the link's components, sent with the first frame; `prior`: the base
+  /// prior's σ (sent with a pose).
+  ExternalTracker(ExternalTrackerSpec spec, const ExternalParams& params, int nodes,
+                  const io::Intrinsics& K, const ComponentGeometry& geometry,
+                  const BasePriorParams& prior);
+  /// Closes its stdin (the end of the episode), gives it 2 s to exit, then kills it; it is
+  /// always reaped.
+  ~ExternalTracker();
+  ExternalTracker(const ExternalTracker&) = delete;
+  ExternalTracker& operator=(const ExternalTracker&) = delete;
+
+  /// Sends one frame and reads the answer. An answer that breaks the protocol while the
+  /// process lives (not JSON, another frame's, a wrong node count, a coordinate that is not
+  /// finite) is a lost frame with the reason in `lost_detail`; so is `"lost": true`.
+  /// Throws ExternalTrackerError when the process dies, hangs or cannot be written to.
+  /// time_s is the wall time from sending to the answer, the pipe included.
+  FrameResult step(const ExternalFrameInput& in);
+  /// Why the last frame was lost ("" when it was not).
+  [[nodiscard]] const std::string& lost_detail() const { return lost_detail_; }
+  [[nodiscard]] const ExternalTrackerSpec& spec() const { return spec_; }
+
+ private:
+  [[noreturn]] void fail(int frame, const std::string& what, double wait_s = 0.0);
+  bool write_all(const char* data, std::size_t n, double deadline);
+  std::string stderr_tail() const;
+  void stop();
+
+  ExternalTrackerSpec spec_;
+  ExternalParams params_;
+  int nodes_;
+  io::Intrinsics K_;
+  ComponentGeometry geometry_;
+  BasePriorParams prior_;
+  pid_t pid_ = -1;
+  int to_child_ = -1, from_child_ = -1;
+  std::filesystem::path stderr_path_;
+  std::string pending_;  // bytes read past the last answer's newline
+  std::string lost_detail_;
+  bool first_ = true;
+};
+
+}  // namespace linksight::sim

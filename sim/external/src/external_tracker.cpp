@@ -1,0 +1,367 @@
+#include "linksight/sim/external_tracker.hpp"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "linksight/tracker/backend.hpp"
+#include "linksight/tracker/format.hpp"
+#include "linksight/tracker/mode.hpp"
+
+extern char** environ;
+
+namespace linksight::sim {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double now_s() { return std::chrono::duration<double>(Clock::now().time_since_epoch()).count(); }
+
+// Milliseconds left to `deadline` for poll(), at least 0.
+int ms_left(double deadline) {
+  const double left = deadline - now_s();
+  return left <= 0 ? 0 : static_cast<int>(std::min(left * 1e3 + 1, 2e9));
+}
+
+// An answer longer than this is not a frame's nodes: the framing is lost.
+constexpr std::size_t kMaxAnswer = std::size_t{1} << 20;
+// What an error quotes of the tracker's stderr, and of an answer that is not JSON.
+constexpr int kStderrLines = 8;
+constexpr std::size_t kQuote = 80;
+
+std::string quoted(const std::string& s) {
+  std::string q = s.substr(0, kQuote);
+  for (char& c : q)
+    if (static_cast<unsigned char>(c) < 0x20) c = ' ';
+  return "'" + q + (s.size() > kQuote ? "...'" : "'");
+}
+
+// SIGPIPE blocked on this thread while it writes (a closed pipe is then EPIPE, not the
+// end of the harness), and a SIGPIPE left pending by such a write consumed.
+class NoSigpipe {
+ public:
+  NoSigpipe() {
+    sigemptyset(&set_);
+    sigaddset(&set_, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &set_, &old_);
+  }
+  ~NoSigpipe() {
+    const timespec zero{0, 0};
+    while (sigtimedwait(&set_, nullptr, &zero) > 0) {
+    }
+    pthread_sigmask(SIG_SETMASK, &old_, nullptr);
+  }
+  NoSigpipe(const NoSigpipe&) = delete;
+  NoSigpipe& operator=(const NoSigpipe&) = delete;
+
+ private:
+  sigset_t set_{}, old_{};
+};
+
+std::string exit_status(int status) {
+  if (WIFEXITED(status)) return "exited with status " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status))
+    return std::string("was killed by signal ") + std::to_string(WTERMSIG(status)) + " (" +
+           strsignal(WTERMSIG(status)) + ")";
+  return "stopped";
+}
+
+}  // namespace
+
+void ExternalParams::validate() const { fields::check(*this, "external"); }
+
+ExternalTrackerSpec parse_external_tracker(const std::string& text, const std::string& flag) {
+  const std::size_t eq = text.find('=');
+  if (eq == std::string::npos || eq + 1 == text.size())
+    throw std::invalid_argument(flag + " '" + text + "': expected NAME=COMMAND");
+  const std::string name = text.substr(0, eq);
+  bool ok = !name.empty() && name.size() <= 40 && name != "truth";
+  for (const char c : name)
+    ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.');
+  if (!ok)
+    throw std::invalid_argument(flag + " '" + text + "': the name '" + name +
+                                "' must be 1-40 letters, digits, '-', '_' or '.', not 'truth'");
+  for (const TrackerMode m : all_modes())
+    if (to_string(m) == name)
+      throw std::invalid_argument(flag + " '" + text + "': '" + name +
+                                  "' is a built-in mode's name; call it something else");
+  return {name, text.substr(eq + 1)};
+}
+
+ExternalTracker::ExternalTracker(ExternalTrackerSpec spec, const ExternalParams& params,
+                                 int nodes, const io::Intrinsics& K,
+                                 const ComponentGeometry& geometry, const BasePriorParams& prior)
+    : spec_(std::move(spec)), params_(params), nodes_(nodes), K_(K), geometry_(geometry),
+      prior_(prior) {
+  params_.validate();
+  if (nodes_ < 1) throw std::invalid_argument("external tracker: nodes must be >= 1");
+  // Its stderr goes to a file (a pipe nobody drained could stall it), quoted on failure.
+  char tmpl[] = "/tmp/linksight-tracker-XXXXXX";
+  const int err_fd = mkostemp(tmpl, O_CLOEXEC);
+  if (err_fd < 0) fail(0, std::string("cannot create a file for its stderr: ") + std::strerror(errno));
+  stderr_path_ = tmpl;
+  int in[2], out[2];
+  if (pipe2(in, O_CLOEXEC) != 0 || pipe2(out, O_CLOEXEC) != 0) {
+    close(err_fd);
+    fail(0, std::string("cannot create pipes: ") + std::strerror(errno));
+  }
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, in[0], 0);
+  posix_spawn_file_actions_adddup2(&fa, out[1], 1);
+  posix_spawn_file_actions_adddup2(&fa, err_fd, 2);
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  // Its own process group: a Ctrl-C at the terminal reaches the harness, which ends the
+  // episode and then the tracker, not the tracker in the middle of a frame.
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGMASK |
+                                      POSIX_SPAWN_SETSIGDEF);
+  posix_spawnattr_setpgroup(&attr, 0);
+  sigset_t none, all;
+  sigemptyset(&none);
+  sigfillset(&all);
+  posix_spawnattr_setsigmask(&attr, &none);
+  posix_spawnattr_setsigdefault(&attr, &all);
+  std::string command = spec_.command;
+  char sh[] = "/bin/sh", dash_c[] = "-c";
+  char* argv[] = {sh, dash_c, command.data(), nullptr};
+  const int rc = posix_spawn(&pid_, "/bin/sh", &fa, &attr, argv, environ);
+  posix_spawn_file_actions_destroy(&fa);
+  posix_spawnattr_destroy(&attr);
+  close(in[0]);
+  close(out[1]);
+  close(err_fd);
+  to_child_ = in[1];
+  from_child_ = out[0];
+  if (rc != 0) {
+    pid_ = -1;
+    fail(0, std::string("cannot be started: ") + std::strerror(rc));
+  }
+  fcntl(to_child_, F_SETFL, fcntl(to_child_, F_GETFL) | O_NONBLOCK);
+  fcntl(from_child_, F_SETFL, fcntl(from_child_, F_GETFL) | O_NONBLOCK);
+}
+
+ExternalTracker::~ExternalTracker() { stop(); }
+
+void ExternalTracker::stop() {
+  if (to_child_ >= 0) close(to_child_);  // EOF: the episode is over
+  to_child_ = -1;
+  if (from_child_ >= 0) close(from_child_);
+  from_child_ = -1;
+  if (pid_ > 0) {
+    int status = 0;
+    const double deadline = now_s() + 2.0;
+    pid_t r = 0;
+    while ((r = waitpid(pid_, &status, WNOHANG)) == 0 && now_s() < deadline) usleep(5000);
+    if (r == 0) {
+      kill(-pid_, SIGKILL);  // the whole group: a shell's children too
+      kill(pid_, SIGKILL);
+      while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+      }
+    }
+    pid_ = -1;
+  }
+  if (!stderr_path_.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(stderr_path_, ec);
+  }
+}
+
+std::string ExternalTracker::stderr_tail() const {
+  std::ifstream in(stderr_path_);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) {
+    if (l.size() > 200) l = l.substr(0, 200) + "...";
+    lines.push_back(l);
+    if (lines.size() > kStderrLines) lines.erase(lines.begin());
+  }
+  if (lines.empty()) return "; its stderr is empty";
+  std::string out = "; its stderr ends:";
+  for (const std::string& l : lines) out += "\n  " + l;
+  return out;
+}
+
+void ExternalTracker::fail(int frame, const std::string& what, double wait_s) {
+  // Reap first (waiting up to wait_s for it to end), so that the message says how it ended.
+  std::string how = what;
+  const double deadline = now_s() + wait_s;
+  while (pid_ > 0) {
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {
+      how += " (it " + exit_status(status) + ")";
+      pid_ = -1;
+    } else if (now_s() >= deadline) {
+      break;
+    } else {
+      usleep(5000);
+    }
+  }
+  const std::string tail = stderr_path_.empty() ? std::string() : stderr_tail();
+  stop();
+  throw ExternalTrackerError("external tracker '" + spec_.name + "' (" + spec_.command +
+                             "): frame " + std::to_string(frame) + ": " + how + tail);
+}
+
+namespace {
+struct WriteTimeout {};
+}  // namespace
+
+bool ExternalTracker::write_all(const char* data, std::size_t n, double deadline) {
+  NoSigpipe guard;
+  while (n > 0) {
+    const ssize_t w = write(to_child_, data, n);
+    if (w > 0) {
+      data += w;
+      n -= static_cast<std::size_t>(w);
+      continue;
+    }
+    if (w < 0 && errno == EINTR) continue;
+    if (w < 0 && errno != EAGAIN) return false;  // EPIPE: it closed its stdin or died
+    pollfd p{to_child_, POLLOUT, 0};
+    const int left = ms_left(deadline);
+    if (left == 0 || poll(&p, 1, left) == 0) throw WriteTimeout{};
+  }
+  return true;
+}
+
+FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
+  if (pid_ <= 0) throw std::logic_error("external tracker: step() after it failed");
+  const auto t0 = Clock::now();
+  const double deadline = now_s() + params_.timeout_s;
+  const Cloud& cloud = *in.cloud;
+  nlohmann::json h = {{"linksight", kExternalProtocol},
+                      {"frame", in.frame},
+                      {"t_s", in.t},
+                      {"nodes", nodes_},
+                      {"points", cloud.size()}};
+  if (first_) {
+    h["intrinsics"] = nlohmann::json::parse(io::intrinsics_json(K_));
+    // The component geometry under a scene's `chain` keys (its one field list).
+    nlohmann::json chain = nlohmann::json::object();
+    struct Out {
+      nlohmann::json& j;
+      void operator()(const char* key, double& v, fields::Rule = {}) { j[key] = v; }
+      void operator()(const char* key, int& v, fields::Rule = {}) { j[key] = v; }
+    } out{chain};
+    geometry_.fields(out);
+    h["chain"] = chain;
+  }
+  if (in.X_CB != nullptr) {
+    nlohmann::json X = nlohmann::json::array();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) X.push_back(in.X_CB->matrix()(r, c));
+    h["base_pose"] = {{"X_CB", X},
+                      {"sigma_m", prior_.sigma_m},
+                      {"sigma_deg", prior_.sigma_rad * 180.0 / 3.14159265358979323846}};
+  }
+  first_ = false;
+  const std::string header = h.dump() + "\n";
+  static_assert(sizeof(float) == 4);
+  try {
+    // Little-endian float32 x y z per point: the host's own layout on every platform
+    // linksight builds on (x86-64, aarch64).
+    if (!write_all(header.data(), header.size(), deadline) ||
+        !write_all(reinterpret_cast<const char*>(cloud.xyz.data()), cloud.xyz.size() * 4,
+                   deadline))
+      fail(in.frame, "stopped reading its input", 1.0);
+  } catch (const WriteTimeout&) {
+    fail(in.frame, "did not read the frame within " + format_shortest(params_.timeout_s) +
+                       " s (scene key external.timeout_s)");
+  }
+  // The answer: one line.
+  std::size_t eol;
+  while ((eol = pending_.find('\n')) == std::string::npos) {
+    if (pending_.size() > kMaxAnswer)
+      fail(in.frame, "answered with a line longer than 1 MiB");
+    char buf[65536];
+    const ssize_t r = read(from_child_, buf, sizeof buf);
+    if (r > 0) {
+      pending_.append(buf, static_cast<std::size_t>(r));
+      continue;
+    }
+    // EOF: it closed its stdout, most likely by ending; the message says how.
+    if (r == 0) fail(in.frame, "closed its output before answering", 1.0);
+    if (errno == EINTR) continue;
+    if (errno != EAGAIN) fail(in.frame, std::string("cannot be read: ") + std::strerror(errno));
+    pollfd p{from_child_, POLLIN, 0};
+    const int left = ms_left(deadline);
+    if (left == 0 || poll(&p, 1, left) == 0)
+      fail(in.frame, "did not answer within " + format_shortest(params_.timeout_s) +
+                         " s (scene key external.timeout_s)");
+  }
+  const std::string line = pending_.substr(0, eol);
+  pending_.erase(0, eol + 1);
+
+  FrameResult r;
+  r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.n_points = cloud.size();
+  r.sdf_error = std::numeric_limits<double>::quiet_NaN();
+  lost_detail_.clear();
+  const auto lost = [&](const std::string& why) {
+    r.lost = true;
+    r.nodes.clear();
+    lost_detail_ = why;
+    return r;
+  };
+  nlohmann::json a;
+  try {
+    a = nlohmann::json::parse(line);
+  } catch (const nlohmann::json::exception&) {
+    return lost("the answer is not JSON: " + quoted(line));
+  }
+  if (!a.is_object()) return lost("the answer is not a JSON object: " + quoted(line));
+  const auto frame = a.find("frame");
+  if (frame == a.end() || !frame->is_number_integer() || frame->get<long long>() != in.frame)
+    return lost("the answer is not for frame " + std::to_string(in.frame) + ": " + quoted(line));
+  if (const auto l = a.find("lost"); l != a.end() && l->is_boolean() && l->get<bool>()) {
+    const auto why = a.find("reason");
+    return lost("the tracker says lost" +
+                (why != a.end() && why->is_string() ? ": " + quoted(why->get<std::string>())
+                                                    : std::string()));
+  }
+  const auto nodes = a.find("nodes");
+  if (nodes == a.end() || !nodes->is_array())
+    return lost("the answer has no \"nodes\" list: " + quoted(line));
+  if (nodes->size() != static_cast<std::size_t>(nodes_))
+    return lost("the answer has " + std::to_string(nodes->size()) + " nodes, expected " +
+                std::to_string(nodes_));
+  r.nodes.resize(static_cast<std::size_t>(nodes_));
+  for (std::size_t j = 0; j < nodes->size(); ++j) {
+    const nlohmann::json& q = (*nodes)[j];
+    if (!q.is_array() || q.size() != 3)
+      return lost("node " + std::to_string(j) + " is not [x, y, z]: " + quoted(q.dump()));
+    for (int c = 0; c < 3; ++c) {
+      if (!q[static_cast<std::size_t>(c)].is_number())
+        return lost("node " + std::to_string(j) + " is not [x, y, z] of numbers: " +
+                    quoted(q.dump()));
+      const double v = q[static_cast<std::size_t>(c)].get<double>();
+      if (!std::isfinite(v) || std::abs(v) > kMaxCoordinate)
+        return lost("node " + std::to_string(j) + " has a coordinate that is not a finite " +
+                    "number within 100 m: " + quoted(q.dump()));
+      r.nodes[j][c] = v;
+    }
+  }
+  if (const auto re = a.find("reinit"); re != a.end() && re->is_boolean() && re->get<bool>()) {
+    r.reinit = true;
+  }
+  return r;
+}
+
+}  // namespace linksight::sim

@@ -1,0 +1,57 @@
+#!/usr/bin/env python3
+"""A tracker that breaks the external-tracker protocol in one way, for the CLI tests.
+
+    broken_tracker.py HOW [FRAME]
+
+Answers every frame with 12 nodes along x (a straight link), except at FRAME (default 3):
+  crash     prints to stderr and exits with status 3
+  exit      exits with status 0 without answering
+  hang      stops answering (sleeps)
+  deaf      stops reading its input (sleeps after answering FRAME - 1; a frame of more
+            than 64 KiB, 5.5k points, then fills the pipe)
+  garbage   answers 'hello, linksight' (not JSON), then goes on
+  count     answers 11 nodes, then goes on
+  nan       answers a coordinate 1e300, then goes on
+  other     answers for another frame, then goes on
+  lost      answers "lost" with a reason, then goes on
+"""
+import json
+import sys
+import time
+
+how = sys.argv[1]
+at = int(sys.argv[2]) if len(sys.argv) > 2 else 3
+stdin = sys.stdin.buffer
+while True:
+    line = stdin.readline()
+    if not line:
+        sys.exit(0)
+    h = json.loads(line)
+    f = h["frame"]
+    stdin.read(12 * h["points"])
+    nodes = [[0.045 * j, 0.0, 0.6] for j in range(h["nodes"])]
+    answer = {"frame": f, "nodes": nodes}
+    if f == at:
+        if how == "crash":
+            print("broken_tracker: giving up at frame %d" % f, file=sys.stderr)
+            sys.exit(3)
+        if how == "exit":
+            sys.exit(0)
+        if how == "hang":
+            time.sleep(3600)
+        if how == "garbage":
+            sys.stdout.write("hello, linksight\n")
+            sys.stdout.flush()
+            continue
+        if how == "count":
+            answer["nodes"] = nodes[:11]
+        if how == "nan":
+            answer["nodes"][5][1] = 1e300
+        if how == "other":
+            answer["frame"] = f + 7
+        if how == "lost":
+            answer = {"frame": f, "lost": True, "reason": "the link left my view"}
+    sys.stdout.write(json.dumps(answer) + "\n")
+    sys.stdout.flush()
+    if f == at - 1 and how == "deaf":
+        time.sleep(3600)  # before reading the next frame's header: its bytes fill the pipe
