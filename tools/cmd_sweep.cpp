@@ -27,7 +27,7 @@ extern "C" void on_sweep_sigint(int) { g_interrupted = true; }
 
 struct SweepOptions {
   std::string scene, grid, out, compare, shard;
-  std::vector<std::string> axes, set;
+  std::vector<std::string> axes, set, trackers;
   int frames = 0;
   int threads = 0;
   bool figures = true;
@@ -96,6 +96,12 @@ int merge_and_report(const fs::path& dir, bool figures, bool quiet) {
     std::cout << "merged " << m.rows << " rows of " << m.cells << " cells from " << m.shard_files
               << " shard file(s): " << (dir / "cells.csv").string() << ", "
               << (dir / "cells_timing.csv").string() << "\n";
+  if (!m.failed.empty()) {
+    std::cerr << "linksight: warning: " << m.failed.size() << " cell(s) failed and have no rows ("
+              << (dir / "cells_failed.csv").string() << "):";
+    for (const sim::SweepFailure& f : m.failed) std::cerr << "\n  cell " << f.cell << ": " << f.error;
+    std::cerr << "\n";
+  }
   if (figures) {
     const std::string note = run_plot_script(
         script_path("LINKSIGHT_SWEEP_PLOT_SCRIPT", LINKSIGHT_SWEEP_PLOT_SCRIPT), dir, quiet);
@@ -117,7 +123,7 @@ int run_sweep(const SweepOptions& o) {
   if (!o.grid.empty()) spec.axes = sim::read_grid(o.grid);
   for (const std::string& a : o.axes) spec.axes.push_back(sim::parse_axis(a));
   spec.set = o.set;
-  spec.modes = parse_compare(o.compare);
+  split_compare(o.compare, o.trackers, spec.modes, spec.external);
   spec.frames = o.frames;
   spec.validate();
   const auto [shard, count] = which_shard(o.shard);
@@ -143,8 +149,16 @@ int run_sweep(const SweepOptions& o) {
     const bool bar = !o.quiet && isatty(fileno(stderr));
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<sim::SweepRow> rows;
+    std::vector<sim::SweepFailure> failures;
     for (std::size_t k = 0; k < cells.size() && !g_interrupted; ++k) {
-      for (sim::SweepRow& r : sim::run_cell(spec, cells[k], o.threads)) rows.push_back(std::move(r));
+      try {
+        for (sim::SweepRow& r : sim::run_cell(spec, cells[k], o.threads)) rows.push_back(std::move(r));
+      } catch (const sim::ExternalTrackerError& e) {
+        // The cell failed; the others go on. Listed in the shard's .failed.csv.
+        failures.push_back({cells[k], e.what()});
+        if (bar) std::cerr << "\n";
+        std::cerr << "linksight: cell " << cells[k] << " failed: " << e.what() << "\n";
+      }
       if (bar)
         progress(k + 1, cells.size(),
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
@@ -157,10 +171,18 @@ int run_sweep(const SweepOptions& o) {
                 << " not written (run again to redo it)\n";
       return 130;
     }
-    sim::write_shard(dir, spec, shard, count, rows);
+    sim::write_shard(dir, spec, shard, count, rows, failures);
     if (!o.quiet)
       std::cout << "shard " << shard << "/" << count << ": " << cells.size() << " cells -> "
                 << (dir / sim::shard_file_name(shard, count)).string() << "\n";
+    if (!failures.empty()) {
+      std::cerr << "linksight: " << failures.size() << " of " << cells.size()
+                << " cells of shard " << shard << "/" << count
+                << " failed (an external tracker died or hung); the shard runs again when "
+                   "started again\n";
+      if (count == 1) (void)merge_and_report(dir, o.figures, o.quiet);
+      return kExitBadInput;
+    }
   }
   if (count == 1) return merge_and_report(dir, o.figures, o.quiet);
   if (!o.quiet)
@@ -182,8 +204,13 @@ Runner add_sweep(CLI::App& app) {
   app.add_option("--grid", o->grid, "YAML file with 'axes:', a list of {key: [values]}");
   app.add_option("--set", o->set, "key.path=value applied to every cell (repeatable)")->take_all();
   app.add_option("--compare", o->compare,
-                 "tracker modes run on each cell's frames, comma-separated, of: " +
-                     mode_choices() + " (default: the scene's tracker.mode)");
+                 "trackers run on each cell's frames, comma-separated: modes (" +
+                     mode_choices() + ") and --tracker NAMEs (default: the scene's "
+                     "tracker.mode and every --tracker)");
+  app.add_option("--tracker", o->trackers,
+                 "NAME=COMMAND (repeatable): a tracker outside linksight, started per cell "
+                 "(docs/protocol.md); compare it by NAME in --compare. Every shard must be given "
+                 "the same");
   app.add_option("--out", o->out, "sweep directory (sweep.json, shard files, cells.csv, figures/)");
   app.add_option("--frames", o->frames, "camera frames per cell (default: the scene's duration)");
   app.add_option("--threads", o->threads, "sensor threads (0: OpenMP default)");

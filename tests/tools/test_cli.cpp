@@ -805,6 +805,58 @@ TEST_F(Cli, ExternalTrackerFailuresAreNamed) {
   EXPECT_NE(WEXITSTATUS(left), 0) << "a broken tracker's process was left behind";
 }
 
+// sweep --tracker: the external tracker is a column of the cells like a mode (som.py
+// scores as paper in every cell); a cell whose tracker dies is reported failed, the other
+// cells go on, and both a single-process sweep and `sweep merge` of shards list it.
+TEST_F(Cli, SweepWithExternalTrackersListsFailedCells) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const std::string som = std::string(LINKSIGHT_PYTHON3) + " " + LINKSIGHT_TRACKERS_DIR + "/som.py";
+  const CliRun ok = run("sweep --scene " + scene + " --axis noise.scale=0,2 --frames 4 --no-figures"
+                        " --tracker 'som=" + som + "' --compare paper,som --out " +
+                        (dir / "som").string(), dir);
+  ASSERT_EQ(ok.code, 0) << ok.err;
+  const auto cells = frames_by_mode(dir / "som" / "cells.csv");  // rows by the mode column
+  ASSERT_EQ(cells.at("som").size(), 2u);
+  for (std::size_t c = 0; c < 2; ++c)
+    EXPECT_NEAR(std::stod(cells.at("som")[c].at("node_err_mean_mm")),
+                std::stod(cells.at("paper")[c].at("node_err_mean_mm")), 0.1);
+  // The tracker crashes at frame 5: the 0.1 s cell (frames 0-3) runs, the 0.2 s one fails.
+  const std::string broken =
+      std::string(LINKSIGHT_PYTHON3) + " " + LINKSIGHT_TEST_TOOLS_DIR + "/broken_tracker.py crash 5";
+  const std::string grid = "sweep --scene " + scene + " --axis duration_s=0.1,0.2 --no-figures"
+                           " --tracker 'bad=" + broken + "' --compare paper,bad --out ";
+  const CliRun one = run(grid + (dir / "one").string(), dir);
+  EXPECT_EQ(one.code, 2) << one.err;
+  EXPECT_NE(one.err.find("cell 1 failed: external tracker 'bad'"), std::string::npos) << one.err;
+  EXPECT_NE(one.err.find("1 cell(s) failed and have no rows"), std::string::npos) << one.err;
+  const auto rows = lines_of(dir / "one" / "cells.csv");
+  ASSERT_EQ(rows.size(), 3u) << "cell 0's two rows";
+  EXPECT_EQ(rows[1].rfind("0,paper,", 0), 0u) << rows[1];
+  EXPECT_EQ(rows[2].rfind("0,bad,", 0), 0u) << rows[2];
+  const auto failed = lines_of(dir / "one" / "cells_failed.csv");
+  ASSERT_EQ(failed.size(), 2u);
+  EXPECT_EQ(failed[1].rfind("1,external tracker 'bad'", 0), 0u) << failed[1];
+  EXPECT_NE(failed[1].find("frame 5"), std::string::npos) << failed[1];
+  // As two shards and a merge: the shard with the failed cell says so, the merge lists it.
+  const CliRun s0 = run(grid + (dir / "two").string() + " --shard 0/2", dir);
+  EXPECT_EQ(s0.code, 0) << s0.err;
+  const CliRun s1 = run(grid + (dir / "two").string() + " --shard 1/2", dir);
+  EXPECT_EQ(s1.code, 2) << s1.err;
+  const CliRun m = run("sweep merge --no-figures " + (dir / "two").string(), dir);
+  EXPECT_EQ(m.code, 0) << m.err;
+  EXPECT_NE(m.err.find("cell 1: external tracker 'bad'"), std::string::npos) << m.err;
+  EXPECT_EQ(lines_of(dir / "two" / "cells.csv"), rows);
+  // A shard with a failed cell is not complete: started again, it runs again.
+  const CliRun again = run(grid + (dir / "two").string() + " --shard 1/2", dir);
+  EXPECT_EQ(again.code, 2) << again.err;
+  EXPECT_EQ(again.out.find("skipped"), std::string::npos) << again.out;
+  // The manifest records the trackers: a shard given another command is refused.
+  const CliRun other = run("sweep --scene " + scene + " --axis duration_s=0.1,0.2 --no-figures"
+                           " --tracker 'bad=" + som + "' --compare paper,bad --shard 0/2 --out " +
+                           (dir / "two").string(), dir);
+  EXPECT_EQ(other.code, 2) << other.err;
+}
+
 // --tracker and --compare: names are checked, and a tracker --compare leaves out is refused.
 TEST_F(Cli, ExternalTrackerFlagsAreChecked) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";

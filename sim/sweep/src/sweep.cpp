@@ -170,6 +170,11 @@ void SweepSpec::validate() const {
   for (const TrackerMode m : modes)
     if (!seen.insert(m).second)
       throw std::invalid_argument("sweep: mode " + std::string(to_string(m)) + " given twice");
+  std::set<std::string> names;
+  for (const TrackerMode m : modes) names.emplace(to_string(m));
+  for (const ExternalTrackerSpec& e : external)
+    if (e.name.empty() || !names.insert(e.name).second)
+      throw std::invalid_argument("sweep: tracker '" + e.name + "' given twice");
   if (frames < 0)
     throw std::invalid_argument("sweep: frames = " + std::to_string(frames) + ": must be >= 0");
   double n = 1;
@@ -245,10 +250,12 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
   EpisodeOptions o;
   o.frames = spec.frames;
   o.modes = spec.modes;
+  o.external = spec.external;
   o.threads = threads;
   o.chain_only_images = true;  // a cell writes numbers only, never an image
   Episode e(scene, o);
-  const std::size_t m = e.modes().size();
+  const std::vector<std::string> names = e.names();
+  const std::size_t m = names.size();
   while (e.done() < e.frames()) (void)e.step();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::vector<EpisodeSummary> sums = e.summaries();
@@ -258,7 +265,7 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
     SweepRow r;
     r.cell = index;
     r.mode = k;
-    const std::string mode(to_string(e.modes()[k]));
+    const std::string& mode = names[k];
     r.values = {std::to_string(index), mode};
     r.values.insert(r.values.end(), cell.values.begin(), cell.values.end());
     r.values.push_back(std::to_string(cell.seed));
@@ -295,6 +302,13 @@ nlohmann::json manifest_json(const SweepSpec& spec) {
   j["set"] = spec.set;
   j["modes"] = nlohmann::json::array();
   for (const TrackerMode m : spec.modes) j["modes"].push_back(std::string(to_string(m)));
+  // Names and commands, to check that every shard compares the same trackers; a shard
+  // starts the ones its own command line gives, never these.
+  if (!spec.external.empty()) {
+    j["external"] = nlohmann::json::array();
+    for (const ExternalTrackerSpec& e : spec.external)
+      j["external"].push_back({{"name", e.name}, {"command", e.command}});
+  }
   j["frames"] = spec.frames;
   j["cells"] = spec.cells();
   return j;
@@ -311,10 +325,14 @@ void write_manifest(const fs::path& dir, const SweepSpec& spec) {
   if (fs::exists(path)) {
     const SweepSpec have = read_manifest(dir);
     const nlohmann::json got = manifest_json(have);
-    for (const char* field : {"scene", "axes", "set", "modes", "frames"}) {
-      if (got[field] != want[field])
+    // `external` is there only when a sweep has external trackers.
+    const auto at = [](const nlohmann::json& j, const char* field) {
+      return j.contains(field) ? j.at(field) : nlohmann::json(nullptr);
+    };
+    for (const char* field : {"scene", "axes", "set", "modes", "external", "frames"}) {
+      if (at(got, field) != at(want, field))
         throw io::InputError(path.string() + " describes another sweep: " + field + " is " +
-                             got[field].dump() + ", this run has " + want[field].dump() +
+                             at(got, field).dump() + ", this run has " + at(want, field).dump() +
                              " (use another --out, or --force to start over)");
     }
     return;
@@ -338,6 +356,9 @@ SweepSpec read_manifest(const fs::path& dir) {
                         a.at("values").get<std::vector<std::string>>()});
     s.set = j.at("set").get<std::vector<std::string>>();
     for (const auto& m : j.at("modes")) s.modes.push_back(parse_mode(m.get<std::string>()));
+    if (j.contains("external"))
+      for (const auto& e : j.at("external"))
+        s.external.push_back({e.at("name").get<std::string>(), e.at("command").get<std::string>()});
     s.frames = j.at("frames").get<int>();
     s.validate();
     if (j.at("cells").get<std::size_t>() != s.cells())
@@ -351,9 +372,35 @@ SweepSpec read_manifest(const fs::path& dir) {
   }
 }
 
+namespace {
+// shard_I_of_N.failed.csv beside shard_I_of_N.csv.
+fs::path failed_file(const fs::path& shard_file) {
+  std::string name = shard_file.filename().string();
+  name.replace(name.size() - 4, 4, ".failed.csv");
+  return shard_file.parent_path() / name;
+}
+// An error on one line of a CSV without quoting.
+std::string one_field(std::string s) {
+  for (char& c : s)
+    if (c == '\n' || c == '\r') c = '|';
+    else if (c == ',') c = ';';
+  return s;
+}
+}  // namespace
+
 void write_shard(const fs::path& dir, const SweepSpec& spec, int shard, int count,
-                 const std::vector<SweepRow>& rows) {
-  io::write_file_atomic(dir / shard_file_name(shard, count), [&](std::ostream& os) {
+                 const std::vector<SweepRow>& rows, const std::vector<SweepFailure>& failures) {
+  const fs::path file = dir / shard_file_name(shard, count);
+  if (failures.empty()) {
+    std::error_code ec;
+    fs::remove(failed_file(file), ec);
+  } else {
+    io::write_file_atomic(failed_file(file), [&](std::ostream& os) {
+      os << "cell,error\n";
+      for (const SweepFailure& f : failures) os << f.cell << ',' << one_field(f.error) << '\n';
+    });
+  }
+  io::write_file_atomic(file, [&](std::ostream& os) {
     os << csv_line(shard_columns(spec));
     for (const SweepRow& r : rows) {
       std::vector<std::string> f = r.values;
@@ -365,7 +412,7 @@ void write_shard(const fs::path& dir, const SweepSpec& spec, int shard, int coun
 
 bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int count) {
   const fs::path path = dir / shard_file_name(shard, count);
-  if (!fs::exists(path)) return false;
+  if (!fs::exists(path) || fs::exists(failed_file(path))) return false;
   try {
     const io::CsvTable f = io::read_csv(path);
     if (f.header != shard_columns(spec)) return false;
@@ -404,10 +451,27 @@ MergeResult merge_sweep(const fs::path& dir) {
       by_cell[cell].push_back(row);
     }
     ++result.shard_files;
+    if (fs::exists(failed_file(path))) {
+      const io::CsvTable failed = io::read_csv(failed_file(path));
+      if (failed.header != std::vector<std::string>{"cell", "error"})
+        throw io::InputError(failed_file(path).string() + ":1: expected the columns cell,error");
+      for (const auto& row : failed.rows) {
+        const std::size_t cell = parse_index(row[0], failed_file(path));
+        if (cell >= spec.cells())
+          throw io::InputError(failed_file(path).string() + ": cell " + row[0] +
+                               " is beyond the grid's " + std::to_string(spec.cells()) + " cells");
+        result.failed.push_back({cell, row[1]});
+      }
+    }
   }
+  std::sort(result.failed.begin(), result.failed.end(),
+            [](const SweepFailure& a, const SweepFailure& b) { return a.cell < b.cell; });
+  std::vector<bool> failed(spec.cells(), false);
+  for (const SweepFailure& f : result.failed) failed[f.cell] = true;
   std::vector<std::size_t> missing, doubled;
   for (std::size_t c = 0; c < by_cell.size(); ++c) {
     auto& rows = by_cell[c];
+    if (failed[c] && rows.empty()) continue;  // listed in cells_failed.csv
     std::set<std::string> modes;
     for (const auto& r : rows) modes.insert(r[1]);
     if (rows.size() > per_cell || modes.size() != rows.size()) {
@@ -427,20 +491,33 @@ MergeResult merge_sweep(const fs::path& dir) {
     msg += "; shard files read: " + std::to_string(files.size());
     throw io::InputError(msg);
   }
-  // Rows of a cell in the order of the manifest's modes (or its one mode).
+  // Rows of a cell in the order of the manifest's modes (or its one mode), then its
+  // external trackers.
   std::vector<std::string> mode_order;
   for (const TrackerMode m : spec.modes) mode_order.emplace_back(to_string(m));
+  for (const ExternalTrackerSpec& e : spec.external) mode_order.push_back(e.name);
   io::StagedFiles out;
+  if (!result.failed.empty()) {
+    std::ostream& f = out.open(dir / "cells_failed.csv");
+    f << "cell,error\n";
+    for (const SweepFailure& x : result.failed) f << x.cell << ',' << one_field(x.error) << '\n';
+  } else {
+    std::error_code ec;
+    fs::remove(dir / "cells_failed.csv", ec);
+  }
   std::ostream& cells = out.open(dir / "cells.csv");
   std::ostream& timing = out.open(dir / "cells_timing.csv");
   cells << csv_line(sweep_columns(spec));
   timing << csv_line(sweep_timing_columns());
   for (auto& rows : by_cell) {
     if (!mode_order.empty()) {
-      std::sort(rows.begin(), rows.end(), [&](const auto& a, const auto& b) {
-        return std::find(mode_order.begin(), mode_order.end(), a[1]) <
-               std::find(mode_order.begin(), mode_order.end(), b[1]);
-      });
+      // A name not in the manifest's list (the scene's own mode) first.
+      const auto rank = [&](const std::string& name) {
+        const auto it = std::find(mode_order.begin(), mode_order.end(), name);
+        return it == mode_order.end() ? -1 : static_cast<long>(it - mode_order.begin());
+      };
+      std::sort(rows.begin(), rows.end(),
+                [&](const auto& a, const auto& b) { return rank(a[1]) < rank(b[1]); });
     }
     for (const auto& r : rows) {
       cells << csv_line({r.begin(), r.begin() + static_cast<long>(n_det)});

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "linksight/sim/external_tracker.hpp"
 #include "linksight/sim/scene.hpp"
 #include "linksight/tracker/tracker.hpp"
 
@@ -36,13 +37,18 @@ struct SweepSpec {
   std::vector<SweepAxis> axes;     ///< first axis slowest: cell index is row-major
   std::vector<std::string> set;    ///< overrides applied to every cell, before the axes
   std::vector<TrackerMode> modes;  ///< compared on each cell's frames; empty: the scene's mode
+  /// Trackers outside linksight, after the modes (the command line's --tracker; the
+  /// manifest records them to check that shards agree, and never starts one).
+  std::vector<ExternalTrackerSpec> external;
   int frames = 0;                  ///< camera frames per cell; 0: the scene's duration
   /// Throws std::invalid_argument naming the problem: no scene, no axis, an axis without
   /// values, a key given twice, a value with a quote or line break, too many cells.
   void validate() const;
   [[nodiscard]] std::size_t cells() const;
-  /// Rows per cell: one per compared mode.
-  [[nodiscard]] std::size_t modes_per_cell() const { return modes.empty() ? 1 : modes.size(); }
+  /// Rows per cell: one per compared tracker (mode or external).
+  [[nodiscard]] std::size_t modes_per_cell() const {
+    return (modes.empty() ? 1 : modes.size()) + external.size();
+  }
 };
 
 struct SweepCell {
@@ -75,7 +81,8 @@ struct SweepRow {
 };
 
 /// Runs one cell's episode (sensor threads: 0 = OpenMP default; results do not depend
-/// on it). Throws io::InputError for a bad scene or override, naming it.
+/// on it). Throws io::InputError for a bad scene or override, naming it, and
+/// ExternalTrackerError when an external tracker dies or hangs (the cell failed).
 [[nodiscard]] std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index,
                                              int threads);
 
@@ -91,20 +98,32 @@ void write_manifest(const std::filesystem::path& dir, const SweepSpec& spec);
 /// Reads DIR/sweep.json; throws io::InputError naming the file when missing or bad.
 [[nodiscard]] SweepSpec read_manifest(const std::filesystem::path& dir);
 
+/// A cell whose external tracker failed: no rows, the error instead.
+struct SweepFailure {
+  std::size_t cell = 0;
+  std::string error;
+};
+
 /// Writes DIR/shard_I_of_N.csv atomically: every deterministic column, then the timing
-/// columns after the cell and mode.
+/// columns after the cell and mode; and, when cells failed, DIR/shard_I_of_N.failed.csv
+/// (`cell,error`, the error on one line), else removes a stale one. A shard with failed
+/// cells is not complete: a re-run redoes it.
 void write_shard(const std::filesystem::path& dir, const SweepSpec& spec, int shard, int count,
-                 const std::vector<SweepRow>& rows);
+                 const std::vector<SweepRow>& rows,
+                 const std::vector<SweepFailure>& failures = {});
 /// Whether DIR/shard_I_of_N.csv exists with the right columns and exactly its cells.
 [[nodiscard]] bool shard_complete(const std::filesystem::path& dir, const SweepSpec& spec,
                                   int shard, int count);
 
 struct MergeResult {
   std::size_t cells = 0, rows = 0, shard_files = 0;
+  std::vector<SweepFailure> failed;  ///< cells that failed (in cells_failed.csv), by cell
 };
 /// Reads every DIR/shard_*_of_*.csv, checks that each cell of the manifest's grid is
 /// there exactly once (throws io::InputError naming the missing and the doubled cells),
-/// and writes DIR/cells.csv and DIR/cells_timing.csv sorted by cell, atomically.
+/// and writes DIR/cells.csv and DIR/cells_timing.csv sorted by cell, atomically. A cell
+/// a shard's .failed.csv lists is not missing: it has no rows, and DIR/cells_failed.csv
+/// lists it with its error.
 MergeResult merge_sweep(const std::filesystem::path& dir);
 
 }  // namespace linksight::sim
