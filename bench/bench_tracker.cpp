@@ -9,36 +9,17 @@
 #include <string>
 #include <vector>
 
-#include "linksight/sim/synthetic_chain.hpp"
+#include "bench_cloud.hpp"
 #include "linksight/tracker/tracker.hpp"
 
 namespace {
 using namespace linksight;
 
-// Exactly n points spread over the whole S-shaped test link with 1 mm noise (an even
-// stride through a denser sample), so every size measures the same geometry.
-Cloud make_cloud(std::size_t n) {
-  Eigen::Isometry3d X_CB = Eigen::Isometry3d::Identity();
-  X_CB.translation() = Eigen::Vector3d(-0.22, -0.02, 0.6);
-  const ComponentGeometry g;
-  const Nodes truth =
-      sim::chain_nodes(g, sim::shape_bends(sim::ChainShape::s_shape, g.count, 0.1), X_CB);
-  sim::SurfaceSampling s;
-  s.samples_per_ball = static_cast<int>(n / 3 + 100);
-  s.samples_per_neck = static_cast<int>(n / 20 + 20);
-  s.noise_sigma = 0.001;
-  const Cloud raw = sim::sample_visible_surface(truth, g, s);
-  Cloud out;
-  out.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) out.push_back(raw.point(i * raw.size() / n));
-  return out;
-}
-
 // End-to-end ms/frame (for OpenCL: upload + kernels + read-backs) and, for OpenCL, the
 // kernels' own device time per frame from profiling events ("kernel_ms").
 void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation accumulation,
                     const char* mode) {
-  const Cloud cloud = make_cloud(static_cast<std::size_t>(state.range(0)));
+  const Cloud cloud = bench::make_cloud(static_cast<std::size_t>(state.range(0)));
   TrackerParams p;
   p.mode = parse_mode(mode);
   p.backend = backend;
