@@ -127,7 +127,8 @@ inline std::filesystem::path script_path(const char* env, const char* built_in) 
 /// Runs `python3 SCRIPT DIR`; "" when it worked, else a note saying why there are no
 /// figures (the data files are complete either way).
 inline std::string run_plot_script(const std::filesystem::path& script,
-                                   const std::filesystem::path& dir, bool quiet) {
+                                   const std::filesystem::path& dir, bool quiet,
+                                   const std::string& needs = "python3-matplotlib") {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(script, ec))
     return "no figures: " + script.string() + " not found";
@@ -138,7 +139,7 @@ inline std::string run_plot_script(const std::filesystem::path& script,
   const std::string cmd = python + " '" + script.string() + "' '" + dir.string() + "'" +
                           (quiet ? " >/dev/null" : "") + " 2>&1";
   if (std::system(cmd.c_str()) != 0)
-    return "no figures: " + script.string() + " failed (is python3-matplotlib installed?)";
+    return "no figures: " + script.string() + " failed (is " + needs + " installed?)";
   return "";
 }
 

@@ -88,7 +88,7 @@ int run_run(const RunOptions& o) {
   io::StagedDir dir(out, o.force);
   const fs::path stage = dir.path();
   const std::vector<std::string> names = episode.names();
-  RunReport report(stage, out, names);
+  RunReport report(stage, out, names, o.figures);
   // Per tracker, its lost frames' reasons in words (external trackers).
   std::vector<nlohmann::json> lost_notes(names.size(), nlohmann::json::array());
 
@@ -108,6 +108,7 @@ int run_run(const RunOptions& o) {
     const ReportFrame rf{f.frame, f.t, f.cloud->size(), f.image->link_occluded_fraction,
                          f.truth_motion, &f.truth_C};
     report.add(rf, f.results, f.scores);
+    report.view_cloud(f.frame, *f.cloud);
     for (std::size_t k = 0; k < names.size(); ++k)
       if (!f.lost_details[k].empty())
         lost_notes[k].push_back({{"frame", f.frame}, {"reason", f.lost_details[k]}});
@@ -155,8 +156,7 @@ int run_run(const RunOptions& o) {
   // Figures: matplotlib via tools/plot_run.py, into the staged directory.
   std::string figures_note;
   if (o.figures && done > 0) {
-    figures_note = run_plot_script(script_path("LINKSIGHT_PLOT_SCRIPT", LINKSIGHT_PLOT_SCRIPT),
-                                   stage, o.quiet);
+    figures_note = draw_figures(stage, o.quiet);
   }
   dir.commit();
 
@@ -172,7 +172,8 @@ int run_run(const RunOptions& o) {
                   << "): " << lost_notes[k][0]["reason"].get<std::string>()
                   << " (all in summary.json)\n";
     std::cout << "wrote " << out.string() << "/{frames.csv,nodes.csv,summary.json}"
-              << (figures_note.empty() && o.figures ? ", figures in " + out.string() + "/figures/"
+              << (figures_note.empty() && o.figures
+                      ? ", figures in " + out.string() + "/figures/, 3-D view " + out.string() + "/view.html"
                                                     : std::string())
               << "\n";
   }

@@ -212,7 +212,7 @@ int run_score(const ScoreOptions& o) {
   const fs::path stage = dir.path();
   std::vector<std::string> names;
   for (const Estimate& e : estimates) names.push_back(e.name);
-  RunReport report(stage, out, names);
+  RunReport report(stage, out, names, o.figures);
   std::vector<sim::EpisodeScorer> scorers(estimates.size());
   std::vector<FrameResult> results(estimates.size());
   std::vector<sim::FrameScore> scores(estimates.size());
@@ -251,6 +251,7 @@ int run_score(const ScoreOptions& o) {
     const ReportFrame rf{static_cast<int>(f), times[f], cloud.size(),
                          occluded[f], motion, &truth_C};
     report.add(rf, results, scores);
+    report.view_cloud(static_cast<int>(f), cloud);
     if (overlay_frames.count(static_cast<int>(f))) {
       char name[32];
       std::snprintf(name, sizeof name, "%06zu.png", f);
@@ -278,8 +279,7 @@ int run_score(const ScoreOptions& o) {
   });
   std::string figures_note;
   if (o.figures)
-    figures_note = run_plot_script(script_path("LINKSIGHT_PLOT_SCRIPT", LINKSIGHT_PLOT_SCRIPT),
-                                   stage, o.quiet);
+    figures_note = draw_figures(stage, o.quiet);
   dir.commit();
   if (!figures_note.empty()) std::cerr << "linksight: warning: " << figures_note << "\n";
   if (!o.quiet) {
@@ -287,7 +287,8 @@ int run_score(const ScoreOptions& o) {
               << " against " << frames << " frames of " << o.truth << "\n";
     report.print_table(std::cout, summaries);
     std::cout << "wrote " << out.string() << "/{frames.csv,nodes.csv,summary.json}"
-              << (figures_note.empty() && o.figures ? ", figures in " + out.string() + "/figures/"
+              << (figures_note.empty() && o.figures
+                      ? ", figures in " + out.string() + "/figures/, 3-D view " + out.string() + "/view.html"
                                                     : std::string())
               << "\n";
   }

@@ -6,7 +6,9 @@
 #include <cstdio>
 #include <iomanip>
 
+#include "cli_common.hpp"
 #include "format.hpp"
+#include "linksight/tracker/backend.hpp"
 #include "linksight/io/error.hpp"
 
 namespace linksight::cli {
@@ -40,13 +42,20 @@ std::string overlay_depth_name(int frame) {
   return name;
 }
 
-RunReport::RunReport(const fs::path& stage, const fs::path& out, std::vector<std::string> names)
-    : out_(out), names_(std::move(names)) {
+RunReport::RunReport(const fs::path& stage, const fs::path& out, std::vector<std::string> names,
+                     bool view)
+    : out_(out), names_(std::move(names)), view_on_(view) {
   fs::create_directories(stage / "overlays");
   frames_.open(stage / "frames.csv");
   nodes_.open(stage / "nodes.csv");
   overlay_.open(stage / "overlays" / "nodes_px.csv");
-  if (!frames_ || !nodes_ || !overlay_) throw io::InputError(out_.string() + ": cannot write");
+  if (view_on_) {
+    fs::create_directories(stage / "view");
+    view_.open(stage / "view" / "cloud.csv");
+    view_ << "frame,x_m,y_m,z_m\n" << std::setprecision(6);
+  }
+  if (!frames_ || !nodes_ || !overlay_ || (view_on_ && !view_))
+    throw io::InputError(out_.string() + ": cannot write");
   frames_ << "mode,frame,t_s,n_points,occluded_fraction,truth_motion_mm,mean_err_mm,"
              "max_err_mm,sdf_err_mm,polyline_err_mm,swaps,reversed,reinit,init_reason,lost,"
              "time_ms\n";
@@ -96,11 +105,34 @@ void RunReport::overlay(const ReportFrame& f, const io::Intrinsics& K,
   if (!overlay_) throw io::InputError(out_.string() + ": write failed");
 }
 
+void RunReport::view_cloud(int frame, const Cloud& cloud) {
+  if (!view_on_) return;
+  const std::size_t n = cloud.size();
+  const std::size_t stride = n <= kViewPoints ? 1 : (n + kViewPoints - 1) / kViewPoints;
+  for (std::size_t i = 0; i < n; i += stride) {
+    const float x = cloud.xyz[3 * i], y = cloud.xyz[3 * i + 1], z = cloud.xyz[3 * i + 2];
+    if (check_point(x, y, z) != PointCheck::kept) continue;
+    view_ << frame << ',' << x << ',' << y << ',' << z << '\n';
+  }
+  if (!view_) throw io::InputError(out_.string() + ": write failed");
+}
+
 void RunReport::close() {
   frames_.close();
   nodes_.close();
   overlay_.close();
-  if (!frames_ || !nodes_ || !overlay_) throw io::InputError(out_.string() + ": write failed");
+  if (view_on_) view_.close();
+  if (!frames_ || !nodes_ || !overlay_ || (view_on_ && !view_))
+    throw io::InputError(out_.string() + ": write failed");
+}
+
+std::string draw_figures(const fs::path& dir, bool quiet) {
+  std::string note =
+      run_plot_script(script_path("LINKSIGHT_PLOT_SCRIPT", LINKSIGHT_PLOT_SCRIPT), dir, quiet);
+  const std::string view = run_plot_script(script_path("LINKSIGHT_VIEW_SCRIPT", LINKSIGHT_VIEW_SCRIPT),
+                                           dir, quiet, "python3-plotly");
+  if (!view.empty()) note += (note.empty() ? "" : "; ") + view;
+  return note;
 }
 
 nlohmann::json RunReport::modes_json(const std::vector<sim::EpisodeSummary>& summaries) const {

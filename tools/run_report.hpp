@@ -29,12 +29,16 @@ struct ReportFrame {
   const Nodes* truth_C = nullptr;  ///< true nodes, camera frame [m]
 };
 
+/// Points per frame in the 3-D view: 240 frames of them and plotly.js stay under 20 MB.
+inline constexpr std::size_t kViewPoints = 1500;
+
 class RunReport {
  public:
   /// Opens the tables in `stage` (a staging directory; `out` is its final name, for
-  /// messages) for the modes `names`, in the order results are given.
+  /// messages) for the modes `names`, in the order results are given; with `view`, also
+  /// view/cloud.csv for the 3-D view (view_cloud).
   RunReport(const std::filesystem::path& stage, const std::filesystem::path& out,
-            std::vector<std::string> names);
+            std::vector<std::string> names, bool view);
   /// One frame: per mode its result (nodes, lost, reinit, init_reason, sdf_error, time_s)
   /// and score. Throws io::InputError when a write fails.
   void add(const ReportFrame& f, const std::vector<FrameResult>& results,
@@ -43,6 +47,9 @@ class RunReport {
   /// its depth image, overlays/depth_NNNNNN.png, is the caller's to write.
   void overlay(const ReportFrame& f, const io::Intrinsics& K,
                const std::vector<FrameResult>& results);
+  /// The frame's cloud for the 3-D view (view/cloud.csv): every k-th finite point, at most
+  /// kViewPoints a frame. Nothing without `view`.
+  void view_cloud(int frame, const Cloud& cloud);
   /// Flushes and closes the tables; throws io::InputError when a write failed.
   void close();
 
@@ -55,8 +62,14 @@ class RunReport {
  private:
   std::filesystem::path out_;
   std::vector<std::string> names_;
-  std::ofstream frames_, nodes_, overlay_;
+  bool view_on_;
+  std::ofstream frames_, nodes_, overlay_, view_;
 };
+
+/// The figures (tools/plot_run.py) and the 3-D view (tools/plot_view.py, view.html) of the
+/// run directory `dir`: "" when both were drawn, else a note saying what is missing and
+/// why (the data files are complete either way).
+[[nodiscard]] std::string draw_figures(const std::filesystem::path& dir, bool quiet);
 
 /// `overlays` frames spread evenly over `frames` (each at the middle of its share).
 /// Throws std::invalid_argument naming --overlays unless 0 <= overlays <= 100.

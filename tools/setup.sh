@@ -21,6 +21,7 @@ packages=(
   libassimp-dev             # sim/: mesh files (load_mesh)
   libembree-dev             # sim/: ray casting for the simulated depth camera
   python3-matplotlib        # linksight run: figures (tools/plot_run.py)
+  python3-plotly            # linksight run: the 3-D view, view.html (tools/plot_view.py)
   zlib1g-dev                # assimp's CMake package links libz.so, which --no-install-recommends leaves out
 )
 what=${LINKSIGHT_SETUP:-all}
@@ -31,6 +32,7 @@ case "$what" in
          libgtest-dev       # tests
          libbenchmark-dev   # bench/
          python3-numpy      # tools/trackers/som.py, the external-tracker tests' reference client
+         chromium           # the 3-D view's test: a real browser loads view.html headless
          slurm-wlm munge    # the slurm ctest: a real single-node Slurm (slurmctld, slurmd, sbatch) and munge
        )
        configure=(-DLINKSIGHT_BUILD_TESTS=ON -DLINKSIGHT_BUILD_BENCH=ON)

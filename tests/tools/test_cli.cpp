@@ -10,6 +10,18 @@
 
 #include <nlohmann/json.hpp>
 
+#define STB_IMAGE_STATIC
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_ONLY_PNG
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-function"
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
+#pragma GCC diagnostic ignored "-Wsign-compare"
+#pragma GCC diagnostic ignored "-Wshadow"
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#include <stb/stb_image.h>
+#pragma GCC diagnostic pop
+
 #include "linksight/io/base_pose.hpp"
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/ply.hpp"
@@ -618,6 +630,8 @@ TEST_F(Cli, ScoreGivesRunsScoresForRunsOwnEstimates) {
   EXPECT_EQ(h[2].at("lost"), "1");
   EXPECT_EQ(h[5].at("lost"), "1");
   EXPECT_EQ(h[3].at("mean_err_mm"), scored.at("theirs")[3].at("mean_err_mm"));
+  EXPECT_GT(fs::exists(out / "view.html") ? fs::file_size(out / "view.html") : 0u, 100000u)
+      << "score draws the 3-D view too";
   for (const char* fig : {"node_error.png", "overlay_000002.png", "overlay_000006.png"})
     EXPECT_GT(fs::exists(out / "figures" / fig) ? fs::file_size(out / "figures" / fig) : 0u,
               10000u)
@@ -879,6 +893,65 @@ TEST_F(Cli, ExternalTrackerFlagsAreChecked) {
   EXPECT_NE(r.err.find("exited with status 127"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("/nonexistent/tracker: not found"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(out));
+}
+
+// The 3-D view (view.html) in a real browser: headless Chromium opens the file from disk
+// (no server, no network), the plot draws (the page marks its body when plotly is done),
+// nothing in the page raised an error or called console.error, and a screenshot shows the
+// scene: the grey cloud, the black truth and the modes' coloured estimates.
+TEST_F(Cli, RunViewIsA3DSceneInABrowser) {
+  ASSERT_STRNE(LINKSIGHT_CHROMIUM, "") << "no chromium: tools/setup.sh installs Debian's";
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const CliRun r = run("run " + scene + " --frames 6 --compare chain-fit,paper --out " +
+                       out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const fs::path view = out / "view.html";
+  ASSERT_TRUE(fs::exists(view)) << r.err << " (needs python3-plotly)";
+  EXPECT_LT(fs::file_size(view), 20u << 20);
+  const std::string browser = std::string(LINKSIGHT_CHROMIUM) +
+                              " --headless=new --no-sandbox --disable-gpu --enable-unsafe-swiftshader"
+                              " --use-angle=swiftshader --window-size=1200,900"
+                              " --virtual-time-budget=10000 --enable-logging=stderr --v=0 ";
+  const fs::path png = dir / "view.png";
+  const std::string url = "file://" + fs::absolute(view).string();
+  ASSERT_EQ(std::system((browser + "--screenshot=" + png.string() + " " + url + " >/dev/null 2>" +
+                         (dir / "shot.log").string()).c_str()),
+            0);
+  ASSERT_EQ(std::system((browser + "--dump-dom " + url + " >" + (dir / "dom.html").string() +
+                         " 2>" + (dir / "dom.log").string()).c_str()),
+            0);
+  const std::string dom = slurp_text(dir / "dom.html");
+  EXPECT_NE(dom.find("data-linksight-view=\"rendered\""), std::string::npos)
+      << "plotly did not finish drawing";
+  EXPECT_NE(dom.find("data-linksight-errors=\"0\""), std::string::npos);
+  EXPECT_EQ(dom.find("<pre class=\"linksight-error\">"), std::string::npos)
+      << dom.substr(dom.find("<pre class=\"linksight-error\">") == std::string::npos
+                        ? 0
+                        : dom.find("<pre class=\"linksight-error\">"),
+                    400);
+  for (const char* log : {"shot.log", "dom.log"}) {
+    for (const std::string& line : lines_of(dir / log)) {
+      if (line.find(":CONSOLE") != std::string::npos) {
+        EXPECT_EQ(line.find("Uncaught"), std::string::npos) << line;
+      }
+    }
+  }
+  int w = 0, h = 0, channels = 0;
+  unsigned char* img = stbi_load(png.string().c_str(), &w, &h, &channels, 3);
+  ASSERT_NE(img, nullptr) << "no screenshot";
+  std::size_t grey = 0, black = 0, coloured = 0;
+  for (int y = 60; y < std::min(h, 680); ++y)  // the scene, below the title, above the slider
+    for (int x = 0; x < std::min(w, 1080); ++x) {  // left of the legend
+      const unsigned char* p = img + 3 * (static_cast<std::size_t>(y) * w + x);
+      const int lo = std::min({p[0], p[1], p[2]}), hi = std::max({p[0], p[1], p[2]});
+      grey += hi - lo < 12 && lo > 120 && hi < 180;
+      black += hi < 40;
+      coloured += hi - lo > 90;
+    }
+  stbi_image_free(img);
+  EXPECT_GT(grey, 500u) << "the cloud";
+  EXPECT_GT(black, 100u) << "the truth";
+  EXPECT_GT(coloured, 300u) << "the estimates";
 }
 
 // linksight run: the main job's outputs are complete and parse.
