@@ -1,6 +1,8 @@
 #pragma once
 // Pieces that more than one subcommand needs: the --compare list and the plotting scripts.
 
+#include <atomic>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <sstream>
@@ -33,6 +35,34 @@ inline std::vector<TrackerMode> parse_compare(const std::string& list) {
   }
   return modes;
 }
+
+/// Set by Ctrl-C (SIGINT) or SIGTERM while an InterruptGuard lives: a command then stops
+/// after its current step and keeps what it finished.
+inline std::atomic<bool>& interrupted() {
+  static std::atomic<bool> flag{false};
+  return flag;
+}
+extern "C" inline void linksight_on_interrupt(int) { interrupted().store(true); }
+
+/// Catches SIGINT and SIGTERM into interrupted() for its lifetime (clearing it first).
+class InterruptGuard {
+ public:
+  InterruptGuard() {
+    interrupted().store(false);
+    previous_int_ = std::signal(SIGINT, linksight_on_interrupt);
+    previous_term_ = std::signal(SIGTERM, linksight_on_interrupt);
+  }
+  ~InterruptGuard() {
+    std::signal(SIGINT, previous_int_);
+    std::signal(SIGTERM, previous_term_);
+  }
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+
+ private:
+  void (*previous_int_)(int) = SIG_DFL;
+  void (*previous_term_)(int) = SIG_DFL;
+};
 
 /// --compare and --tracker NAME=COMMAND into built-in modes and external trackers: an item
 /// of `compare` is a --tracker's NAME or a mode. Empty `compare`: no mode given (the

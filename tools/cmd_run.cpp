@@ -33,8 +33,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::atomic<bool> g_interrupted{false};
-extern "C" void on_sigint(int) { g_interrupted = true; }
 
 struct RunOptions {
   std::string scene;
@@ -72,8 +70,12 @@ int run_run(const RunOptions& o) {
     std::cout << sim::resolved_scene_yaml(o.scene, o.set);
     return kExitOk;
   }
+  // From here a Ctrl-C or SIGTERM ends the run cleanly: the frames done are written, the
+  // external trackers ended, nothing left in a staging directory.
+  const InterruptGuard guard;
   const sim::Scene scene = sim::load_scene(o.scene, o.set);
   sim::EpisodeOptions eo;
+  eo.cancel = &interrupted();
   eo.frames = o.frames;
   eo.threads = o.threads;
   split_compare(o.compare, o.trackers, eo.modes, eo.external);
@@ -96,12 +98,16 @@ int run_run(const RunOptions& o) {
   const io::Intrinsics& K = scene.camera.intrinsics;
 
   const bool bar = !o.quiet && isatty(fileno(stderr));
-  g_interrupted = false;
-  auto* previous_handler = std::signal(SIGINT, on_sigint);
   const auto t_start = std::chrono::steady_clock::now();
   double physics = 0, render = 0, extract = 0;
-  while (episode.done() < n && !g_interrupted) {
-    const sim::EpisodeFrame& f = episode.step();
+  while (episode.done() < n && !interrupted()) {
+    const sim::EpisodeFrame* step = nullptr;
+    try {
+      step = &episode.step();
+    } catch (const sim::ExternalTrackerInterrupted&) {
+      break;  // that frame is not scored; the frames before it are written
+    }
+    const sim::EpisodeFrame& f = *step;
     physics += episode.last_times().physics;
     render += episode.last_times().render;
     extract += episode.last_times().extract;
@@ -120,7 +126,7 @@ int run_run(const RunOptions& o) {
       progress(episode.done(), n,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count());
   }
-  std::signal(SIGINT, previous_handler);
+  episode.stop_external();  // the external trackers end here, not after the figures
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (bar) std::cerr << "\n";

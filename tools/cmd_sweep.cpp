@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "cli_common.hpp"
 #include "commands.hpp"
@@ -22,8 +23,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::atomic<bool> g_interrupted{false};
-extern "C" void on_sweep_sigint(int) { g_interrupted = true; }
 
 struct SweepOptions {
   std::string scene, grid, out, compare, shard;
@@ -144,15 +143,22 @@ int run_sweep(const SweepOptions& o) {
       std::cout << "shard " << shard << "/" << count << " is complete in " << dir.string()
                 << ": skipped\n";
   } else {
-    g_interrupted = false;
-    auto* previous = std::signal(SIGINT, on_sweep_sigint);
+    std::optional<InterruptGuard> guard(std::in_place);
     const bool bar = !o.quiet && isatty(fileno(stderr));
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<sim::SweepRow> rows;
     std::vector<sim::SweepFailure> failures;
-    for (std::size_t k = 0; k < cells.size() && !g_interrupted; ++k) {
+    for (std::size_t k = 0; k < cells.size() && !interrupted(); ++k) {
       try {
-        for (sim::SweepRow& r : sim::run_cell(spec, cells[k], o.threads)) rows.push_back(std::move(r));
+        for (sim::SweepRow& r : sim::run_cell(spec, cells[k], o.threads, &interrupted())) {
+          if (!r.lost_note.empty()) {
+            if (bar) std::cerr << "\n";
+            std::cerr << "linksight: warning: cell " << cells[k] << ": " << r.lost_note << "\n";
+          }
+          rows.push_back(std::move(r));
+        }
+      } catch (const sim::ExternalTrackerInterrupted&) {
+        break;  // interrupted() is set: the shard is not written
       } catch (const sim::ExternalTrackerError& e) {
         // The cell failed; the others go on. Listed in the shard's .failed.csv.
         failures.push_back({cells[k], e.what()});
@@ -165,8 +171,9 @@ int run_sweep(const SweepOptions& o) {
                  shard, count);
     }
     if (bar) std::cerr << "\n";
-    std::signal(SIGINT, previous);
-    if (g_interrupted) {
+    const bool stopped = interrupted();
+    guard.reset();
+    if (stopped) {
       std::cerr << "linksight: interrupted; shard " << shard << "/" << count
                 << " not written (run again to redo it)\n";
       return 130;

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """A tracker that breaks the external-tracker protocol in one way, for the CLI tests.
 
-    broken_tracker.py HOW [FRAME]
+    broken_tracker.py HOW [FRAME [TAG]]
 
 Answers every frame with 12 nodes along x (a straight link), except at FRAME (default 3):
   crash     prints to stderr and exits with status 3
@@ -14,13 +14,18 @@ Answers every frame with 12 nodes along x (a straight link), except at FRAME (de
   nan       answers a coordinate 1e300, then goes on
   other     answers for another frame, then goes on
   lost      answers "lost" with a reason, then goes on
+  stray     prints a stray line before its answer, then goes on
+  orphan    starts `sleep 3600.TAG` (holding its stdout open) and exits with status 3
+TAG (digits) marks its processes, for a test to look for what is left.
 """
+import subprocess
 import json
 import sys
 import time
 
 how = sys.argv[1]
 at = int(sys.argv[2]) if len(sys.argv) > 2 else 3
+tag = sys.argv[3] if len(sys.argv) > 3 else "0"
 stdin = sys.stdin.buffer
 while True:
     line = stdin.readline()
@@ -37,6 +42,11 @@ while True:
             sys.exit(3)
         if how == "exit":
             sys.exit(0)
+        if how == "orphan":
+            subprocess.Popen(["sleep", "3600." + tag])
+            sys.exit(3)
+        if how == "stray":
+            sys.stdout.write("debug: frame %d\n" % f)
         if how == "hang":
             time.sleep(3600)
         if how == "garbage":

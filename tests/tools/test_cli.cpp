@@ -1,7 +1,9 @@
 // Runs the real linksight binary.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -771,27 +773,39 @@ TEST_F(Cli, ExternalSomClientScoresAsThePaperMode) {
 // end quoted), and no output; its process is reaped either way.
 TEST_F(Cli, ExternalTrackerFailuresAreNamed) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  // This test's own mark on its trackers' processes (tests may run side by side).
+  const std::string tag = std::to_string(::getpid());
   const std::string broken =
       std::string(LINKSIGHT_PYTHON3) + " " + LINKSIGHT_TEST_TOOLS_DIR + "/broken_tracker.py";
+  const auto command = [&](const std::string& how) { return broken + " " + how + " 3 " + tag; };
   const auto with = [&](const std::string& how) {
     return "run " + scene + " --frames 6 --no-figures --set external.timeout_s=3 --tracker 'bad=" +
-           broken + " " + how + "' --compare paper,bad";
+           command(how) + "' --compare paper,bad";
   };
   for (const auto& [how, says] : std::vector<std::pair<std::string, std::string>>{
            {"crash", "frame 3: closed its output before answering (it exited with status 3); "
                      "its stderr ends:\n  broken_tracker: giving up at frame 3"},
            {"exit", "frame 3: closed its output before answering (it exited with status 0)"},
+           {"orphan", "frame 3: exited with status 3 before answering"},
            {"hang", "frame 3: did not answer within 3 s (scene key external.timeout_s)"},
            {"deaf", "frame 3: did not read the frame within 3 s"}}) {
+    const auto t0 = std::chrono::steady_clock::now();
     const CliRun r = run(with(how) + " --out " + out.string(), dir);
+    const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     EXPECT_EQ(r.code, 2) << how << ": " << r.err;
-    EXPECT_NE(r.err.find("external tracker 'bad' (" + broken + " " + how + "): " + says),
+    EXPECT_NE(r.err.find("external tracker 'bad' (" + command(how) + "): " + says),
               std::string::npos)
         << how << ": " << r.err;
     EXPECT_FALSE(fs::exists(out)) << how << ": no partial output";
+    // A tracker that ends is noticed at once, even when something it started holds its
+    // output open; only a live one waits for the timeout.
+    if (how != "hang" && how != "deaf") {
+      EXPECT_LT(took, 2.5) << how;
+    }
   }
   for (const auto& [how, says] : std::vector<std::pair<std::string, std::string>>{
            {"garbage", "the answer is not JSON: 'hello, linksight'"},
+           {"stray", "the answer is not JSON: 'debug: frame 3'"},
            {"count", "the answer has 11 nodes, expected 12"},
            {"nan", "node 5 has a coordinate that is not a finite number within 100 m"},
            {"other", "the answer is not for frame 3"},
@@ -805,7 +819,7 @@ TEST_F(Cli, ExternalTrackerFailuresAreNamed) {
     std::ifstream js(o / "summary.json");
     const nlohmann::json j = nlohmann::json::parse(js);
     const auto& m = j["modes"]["bad"];
-    EXPECT_EQ(m["lost_frames"], 1) << how;
+    EXPECT_EQ(m["lost_frames"], 1) << how << ": one bad line costs one frame";
     ASSERT_EQ(m["external"]["lost_frames"].size(), 1u) << how;
     EXPECT_EQ(m["external"]["lost_frames"][0]["frame"], 3) << how;
     EXPECT_NE(m["external"]["lost_frames"][0]["reason"].get<std::string>().find(says),
@@ -814,9 +828,36 @@ TEST_F(Cli, ExternalTrackerFailuresAreNamed) {
     EXPECT_EQ(frames_by_mode(o / "frames.csv").at("bad")[3].at("lost"), "1") << how;
     EXPECT_EQ(frames_by_mode(o / "frames.csv").at("bad")[4].at("lost"), "0") << how;
   }
-  // Every process reaped: none of the broken trackers is left, running or a zombie.
-  const int left = std::system("ps -eo args | grep -q '[b]roken_tracker.py'");
-  EXPECT_NE(WEXITSTATUS(left), 0) << "a broken tracker's process was left behind";
+  // Every process reaped, and what a tracker started killed with it: none of this test's
+  // is left, running or a zombie.
+  const int left = std::system(("ps -eo args | grep -v grep | grep -q '" + tag + "'").c_str());
+  EXPECT_NE(WEXITSTATUS(left), 0) << "a tracker's process was left behind";
+}
+
+// Ctrl-C while an external tracker hangs in a frame: run stops waiting at once (not at the
+// timeout), keeps the frames done (exit 130, "interrupted"), and ends the tracker.
+TEST_F(Cli, ExternalTrackerCtrlCWhileItHangs) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const std::string tag = std::to_string(::getpid());
+  const std::string cmd = "timeout --preserve-status -s INT 3 " + std::string(LINKSIGHT_EXE) +
+                          " run " + scene + " --frames 20 --no-figures --set external.timeout_s=60"
+                          " --tracker 'bad=" + LINKSIGHT_PYTHON3 + " " + LINKSIGHT_TEST_TOOLS_DIR +
+                          "/broken_tracker.py hang 5 " + tag + "' --compare paper,bad --quiet --out " +
+                          out.string() + " >/dev/null 2>&1";
+  const auto t0 = std::chrono::steady_clock::now();
+  const int status = std::system(cmd.c_str());
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_LT(took, 10.0) << "Ctrl-C waited for the tracker's timeout";
+  std::ifstream js(out / "summary.json");
+  const nlohmann::json j = nlohmann::json::parse(js);
+  EXPECT_TRUE(j["interrupted"].get<bool>());
+  EXPECT_EQ(j["frames"], 5) << "frames 0-4 answered; frame 5 hung";
+  EXPECT_EQ(j["modes"]["bad"]["frames"], 5);
+  EXPECT_EQ(j["modes"]["paper"]["frames"], 5) << "no mode scores the frame in progress";
+  const int left = std::system(("ps -eo args | grep -v grep | grep -q '" + tag + "'").c_str());
+  EXPECT_NE(WEXITSTATUS(left), 0) << "the tracker was left behind";
 }
 
 // sweep --tracker: the external tracker is a column of the cells like a mode (som.py

@@ -124,6 +124,7 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
     m.external.push_back(std::make_unique<ExternalTracker>(
         spec, scene.external, scene.tracker.nodes, scene.camera.intrinsics,
         scene.tracker.geometry, scene.tracker.base_prior));
+    m.external.back()->set_cancel(options.cancel);
     m.scorers.emplace_back(options.score);
   }
 }
@@ -148,6 +149,10 @@ std::vector<std::string> Episode::names() const {
   return out;
 }
 const EpisodeTimes& Episode::last_times() const { return impl_->times; }
+void Episode::stop_external() {
+  impl_->external.clear();  // each destructor ends and reaps its process
+  impl_->failed = true;
+}
 
 const EpisodeFrame& Episode::step() {
   Impl& m = *impl_;
@@ -215,7 +220,8 @@ const EpisodeFrame& Episode::step_frame() {
   o.results.resize(n_trackers);
   o.scores.resize(n_trackers);
   o.lost_details.assign(n_trackers, std::string());
-  double scoring = 0;
+  // Every tracker's result first, then the scores: an interrupted external tracker
+  // leaves no mode with this frame scored and another without.
   for (std::size_t k = 0; k < n_trackers; ++k) {
     // Its own time is in FrameResult::time_s.
     const Eigen::Isometry3d* X_CB = o.base_prior_C ? &*o.base_prior_C : nullptr;
@@ -230,6 +236,9 @@ const EpisodeFrame& Episode::step_frame() {
         o.results[k].sdf_error = cloud_sdf_error(m.cloud, o.results[k].nodes,
                                                  m.scene.tracker.geometry);
     }
+  }
+  double scoring = 0;
+  for (std::size_t k = 0; k < n_trackers; ++k) {
     t0 = std::chrono::steady_clock::now();
     const FrameResult& r = o.results[k];
     o.scores[k] = score_frame(r.lost ? Nodes{} : r.nodes, o.truth_C);

@@ -4,10 +4,12 @@
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <cctype>
 #include <cerrno>
 #include <chrono>
@@ -46,7 +48,7 @@ constexpr std::size_t kMaxAnswer = std::size_t{1} << 20;
 constexpr int kStderrLines = 8;
 constexpr std::size_t kQuote = 80;
 
-std::string quoted(const std::string& s) {
+std::string quote_answer(const std::string& s) {
   std::string q = s.substr(0, kQuote);
   for (char& c : q)
     if (static_cast<unsigned char>(c) < 0x20) c = ' ';
@@ -75,13 +77,6 @@ class NoSigpipe {
   sigset_t set_{}, old_{};
 };
 
-std::string exit_status(int status) {
-  if (WIFEXITED(status)) return "exited with status " + std::to_string(WEXITSTATUS(status));
-  if (WIFSIGNALED(status))
-    return std::string("was killed by signal ") + std::to_string(WTERMSIG(status)) + " (" +
-           strsignal(WTERMSIG(status)) + ")";
-  return "stopped";
-}
 
 }  // namespace
 
@@ -105,6 +100,46 @@ ExternalTrackerSpec parse_external_tracker(const std::string& text, const std::s
   return {name, text.substr(eq + 1)};
 }
 
+namespace {
+
+// A file descriptor closed when it goes out of scope, unless released.
+struct Fd {
+  int fd = -1;
+  Fd() = default;
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  ~Fd() {
+    if (fd >= 0) close(fd);
+  }
+  int release() {
+    const int f = fd;
+    fd = -1;
+    return f;
+  }
+};
+
+// How `status` ended the shell that ran the command. A shell reports its command's death
+// by signal n as exit status 128 + n.
+std::string exit_status(int status) {
+  if (WIFEXITED(status)) {
+    const int code = WEXITSTATUS(status);
+    std::string out = "exited with status " + std::to_string(code);
+    if (code > 128 && code <= 128 + 64)
+      out += std::string(", the shell's code for its command killed by signal ") +
+             std::to_string(code - 128) + " (" + strsignal(code - 128) + ")";
+    return out;
+  }
+  if (WIFSIGNALED(status))
+    return std::string("was killed by signal ") + std::to_string(WTERMSIG(status)) + " (" +
+           strsignal(WTERMSIG(status)) + ")";
+  return "stopped";
+}
+
+// The slice a wait looks at the cancel flag and the process in.
+constexpr int kSliceMs = 50;
+
+}  // namespace
+
 ExternalTracker::ExternalTracker(ExternalTrackerSpec spec, const ExternalParams& params,
                                  int nodes, const io::Intrinsics& K,
                                  const ComponentGeometry& geometry, const BasePriorParams& prior)
@@ -112,25 +147,39 @@ ExternalTracker::ExternalTracker(ExternalTrackerSpec spec, const ExternalParams&
       prior_(prior) {
   params_.validate();
   if (nodes_ < 1) throw std::invalid_argument("external tracker: nodes must be >= 1");
-  // Its stderr goes to a file (a pipe nobody drained could stall it), quoted on failure.
-  char tmpl[] = "/tmp/linksight-tracker-XXXXXX";
-  const int err_fd = mkostemp(tmpl, O_CLOEXEC);
-  if (err_fd < 0) fail(0, std::string("cannot create a file for its stderr: ") + std::strerror(errno));
-  stderr_path_ = tmpl;
-  int in[2], out[2];
-  if (pipe2(in, O_CLOEXEC) != 0 || pipe2(out, O_CLOEXEC) != 0) {
-    close(err_fd);
-    fail(0, std::string("cannot create pipes: ") + std::strerror(errno));
-  }
+  const std::string who = "external tracker '" + spec_.name + "' (" + spec_.command + "): ";
+  // Its stderr goes to a file (a pipe nobody drained could stall it), quoted on failure;
+  // unlinked at once, so that nothing is left behind however linksight ends.
+  const char* tmpdir = std::getenv("TMPDIR");
+  std::string tmpl = std::string(tmpdir && *tmpdir ? tmpdir : "/tmp") + "/linksight-tracker-XXXXXX";
+  Fd err, in_r, in_w, out_r, out_w;
+  err.fd = mkostemp(tmpl.data(), O_CLOEXEC);
+  if (err.fd < 0)
+    throw ExternalTrackerError(who + "cannot create a file for its stderr in " + tmpl + ": " +
+                               std::strerror(errno));
+  unlink(tmpl.c_str());
+  int p[2];
+  if (pipe2(p, O_CLOEXEC) != 0)
+    throw ExternalTrackerError(who + "cannot create a pipe: " + std::strerror(errno));
+  in_r.fd = p[0];
+  in_w.fd = p[1];
+  if (pipe2(p, O_CLOEXEC) != 0)
+    throw ExternalTrackerError(who + "cannot create a pipe: " + std::strerror(errno));
+  out_r.fd = p[0];
+  out_w.fd = p[1];
   posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_adddup2(&fa, in[0], 0);
-  posix_spawn_file_actions_adddup2(&fa, out[1], 1);
-  posix_spawn_file_actions_adddup2(&fa, err_fd, 2);
   posix_spawnattr_t attr;
-  posix_spawnattr_init(&attr);
+  if (posix_spawn_file_actions_init(&fa) != 0)
+    throw ExternalTrackerError(who + "cannot be started: out of memory");
+  if (posix_spawnattr_init(&attr) != 0) {
+    posix_spawn_file_actions_destroy(&fa);
+    throw ExternalTrackerError(who + "cannot be started: out of memory");
+  }
+  posix_spawn_file_actions_adddup2(&fa, in_r.fd, 0);
+  posix_spawn_file_actions_adddup2(&fa, out_w.fd, 1);
+  posix_spawn_file_actions_adddup2(&fa, err.fd, 2);
   // Its own process group: a Ctrl-C at the terminal reaches the harness, which ends the
-  // episode and then the tracker, not the tracker in the middle of a frame.
+  // episode and then the tracker (all of its group), not the tracker in mid-frame.
   posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGMASK |
                                       POSIX_SPAWN_SETSIGDEF);
   posix_spawnattr_setpgroup(&attr, 0);
@@ -142,18 +191,15 @@ ExternalTracker::ExternalTracker(ExternalTrackerSpec spec, const ExternalParams&
   std::string command = spec_.command;
   char sh[] = "/bin/sh", dash_c[] = "-c";
   char* argv[] = {sh, dash_c, command.data(), nullptr};
-  const int rc = posix_spawn(&pid_, "/bin/sh", &fa, &attr, argv, environ);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, "/bin/sh", &fa, &attr, argv, environ);
   posix_spawn_file_actions_destroy(&fa);
   posix_spawnattr_destroy(&attr);
-  close(in[0]);
-  close(out[1]);
-  close(err_fd);
-  to_child_ = in[1];
-  from_child_ = out[0];
-  if (rc != 0) {
-    pid_ = -1;
-    fail(0, std::string("cannot be started: ") + std::strerror(rc));
-  }
+  if (rc != 0) throw ExternalTrackerError(who + "cannot be started: " + std::strerror(rc));
+  pid_ = pgid_ = pid;
+  to_child_ = in_w.release();
+  from_child_ = out_r.release();
+  stderr_fd_ = err.release();
   fcntl(to_child_, F_SETFL, fcntl(to_child_, F_GETFL) | O_NONBLOCK);
   fcntl(from_child_, F_SETFL, fcntl(from_child_, F_GETFL) | O_NONBLOCK);
 }
@@ -163,31 +209,40 @@ ExternalTracker::~ExternalTracker() { stop(); }
 void ExternalTracker::stop() {
   if (to_child_ >= 0) close(to_child_);  // EOF: the episode is over
   to_child_ = -1;
-  if (from_child_ >= 0) close(from_child_);
-  from_child_ = -1;
   if (pid_ > 0) {
     int status = 0;
     const double deadline = now_s() + 2.0;
     pid_t r = 0;
     while ((r = waitpid(pid_, &status, WNOHANG)) == 0 && now_s() < deadline) usleep(5000);
     if (r == 0) {
-      kill(-pid_, SIGKILL);  // the whole group: a shell's children too
+      kill(-pgid_, SIGKILL);
       kill(pid_, SIGKILL);
       while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
       }
     }
     pid_ = -1;
   }
-  if (!stderr_path_.empty()) {
-    std::error_code ec;
-    std::filesystem::remove(stderr_path_, ec);
-  }
+  // Whatever it started and left running (a background job of the command) goes too.
+  if (pgid_ > 0) kill(-pgid_, SIGKILL);
+  pgid_ = -1;
+  if (from_child_ >= 0) close(from_child_);
+  from_child_ = -1;
+  if (stderr_fd_ >= 0) close(stderr_fd_);
+  stderr_fd_ = -1;
 }
 
 std::string ExternalTracker::stderr_tail() const {
-  std::ifstream in(stderr_path_);
+  // The last 64 KiB at most, whatever it wrote.
+  constexpr off_t kTail = 65536;
+  struct stat st {};
+  if (stderr_fd_ < 0 || fstat(stderr_fd_, &st) != 0) return "";
+  const off_t from = st.st_size > kTail ? st.st_size - kTail : 0;
+  std::string text(static_cast<std::size_t>(st.st_size - from), '\0');
+  const ssize_t got = pread(stderr_fd_, text.data(), text.size(), from);
+  text.resize(got > 0 ? static_cast<std::size_t>(got) : 0);
   std::vector<std::string> lines;
-  for (std::string l; std::getline(in, l);) {
+  std::stringstream ss(text);
+  for (std::string l; std::getline(ss, l);) {
     if (l.size() > 200) l = l.substr(0, 200) + "...";
     lines.push_back(l);
     if (lines.size() > kStderrLines) lines.erase(lines.begin());
@@ -213,17 +268,34 @@ void ExternalTracker::fail(int frame, const std::string& what, double wait_s) {
       usleep(5000);
     }
   }
-  const std::string tail = stderr_path_.empty() ? std::string() : stderr_tail();
+  const std::string tail = stderr_tail();
   stop();
   throw ExternalTrackerError("external tracker '" + spec_.name + "' (" + spec_.command +
                              "): frame " + std::to_string(frame) + ": " + how + tail);
 }
 
-namespace {
-struct WriteTimeout {};
-}  // namespace
+bool ExternalTracker::wait_for(int fd, short events, double deadline, int frame) {
+  for (;;) {
+    if (cancel_ != nullptr && cancel_->load()) {
+      stop();
+      throw ExternalTrackerInterrupted("external tracker '" + spec_.name + "': frame " +
+                                       std::to_string(frame) + ": interrupted");
+    }
+    const int left = ms_left(deadline);
+    if (left == 0) return false;
+    pollfd p{fd, events, 0};
+    const int r = poll(&p, 1, std::min(left, kSliceMs));
+    if (r > 0) return true;
+    // Its process ended while something it started still holds the pipe open.
+    int status = 0;
+    if (pid_ > 0 && waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = -1;
+      fail(frame, exit_status(status) + " before answering");
+    }
+  }
+}
 
-bool ExternalTracker::write_all(const char* data, std::size_t n, double deadline) {
+bool ExternalTracker::write_all(const char* data, std::size_t n, double deadline, int frame) {
   NoSigpipe guard;
   while (n > 0) {
     const ssize_t w = write(to_child_, data, n);
@@ -234,11 +306,34 @@ bool ExternalTracker::write_all(const char* data, std::size_t n, double deadline
     }
     if (w < 0 && errno == EINTR) continue;
     if (w < 0 && errno != EAGAIN) return false;  // EPIPE: it closed its stdin or died
-    pollfd p{to_child_, POLLOUT, 0};
-    const int left = ms_left(deadline);
-    if (left == 0 || poll(&p, 1, left) == 0) throw WriteTimeout{};
+    if (!wait_for(to_child_, POLLOUT, deadline, frame))
+      fail(frame, "did not read the frame within " + format_shortest(params_.timeout_s) +
+                      " s (scene key external.timeout_s)");
   }
   return true;
+}
+
+std::string ExternalTracker::read_line(double deadline, int frame) {
+  std::size_t eol;
+  while ((eol = pending_.find('\n')) == std::string::npos) {
+    if (pending_.size() > kMaxAnswer) fail(frame, "answered with a line longer than 1 MiB");
+    char buf[65536];
+    const ssize_t r = read(from_child_, buf, sizeof buf);
+    if (r > 0) {
+      pending_.append(buf, static_cast<std::size_t>(r));
+      continue;
+    }
+    // EOF: it closed its stdout, most likely by ending; the message says how.
+    if (r == 0) fail(frame, "closed its output before answering", 1.0);
+    if (errno == EINTR) continue;
+    if (errno != EAGAIN) fail(frame, std::string("cannot be read: ") + std::strerror(errno));
+    if (!wait_for(from_child_, POLLIN, deadline, frame))
+      fail(frame, "did not answer within " + format_shortest(params_.timeout_s) +
+                      " s (scene key external.timeout_s)");
+  }
+  std::string line = pending_.substr(0, eol);
+  pending_.erase(0, eol + 1);
+  return line;
 }
 
 FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
@@ -273,41 +368,29 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
   }
   first_ = false;
   const std::string header = h.dump() + "\n";
-  static_assert(sizeof(float) == 4);
-  try {
-    // Little-endian float32 x y z per point: the host's own layout on every platform
-    // linksight builds on (x86-64, aarch64).
-    if (!write_all(header.data(), header.size(), deadline) ||
-        !write_all(reinterpret_cast<const char*>(cloud.xyz.data()), cloud.xyz.size() * 4,
-                   deadline))
-      fail(in.frame, "stopped reading its input", 1.0);
-  } catch (const WriteTimeout&) {
-    fail(in.frame, "did not read the frame within " + format_shortest(params_.timeout_s) +
-                       " s (scene key external.timeout_s)");
-  }
-  // The answer: one line.
-  std::size_t eol;
-  while ((eol = pending_.find('\n')) == std::string::npos) {
-    if (pending_.size() > kMaxAnswer)
-      fail(in.frame, "answered with a line longer than 1 MiB");
-    char buf[65536];
-    const ssize_t r = read(from_child_, buf, sizeof buf);
-    if (r > 0) {
-      pending_.append(buf, static_cast<std::size_t>(r));
-      continue;
+  // Little-endian float32 x y z per point: the host's own layout.
+  static_assert(sizeof(float) == 4 && std::endian::native == std::endian::little);
+  if (!write_all(header.data(), header.size(), deadline, in.frame) ||
+      !write_all(reinterpret_cast<const char*>(cloud.xyz.data()), cloud.xyz.size() * 4,
+                 deadline, in.frame))
+    fail(in.frame, "stopped reading its input", 1.0);
+  // The answer: one line. A line for an earlier frame (the rest of an answer a stray line
+  // of output displaced) is passed over, so that one stray line costs one frame.
+  std::string line;
+  nlohmann::json a;
+  bool parsed = false;
+  for (;;) {
+    line = read_line(deadline, in.frame);
+    try {
+      a = nlohmann::json::parse(line);
+      parsed = true;
+    } catch (const nlohmann::json::exception&) {
+      parsed = false;
     }
-    // EOF: it closed its stdout, most likely by ending; the message says how.
-    if (r == 0) fail(in.frame, "closed its output before answering", 1.0);
-    if (errno == EINTR) continue;
-    if (errno != EAGAIN) fail(in.frame, std::string("cannot be read: ") + std::strerror(errno));
-    pollfd p{from_child_, POLLIN, 0};
-    const int left = ms_left(deadline);
-    if (left == 0 || poll(&p, 1, left) == 0)
-      fail(in.frame, "did not answer within " + format_shortest(params_.timeout_s) +
-                         " s (scene key external.timeout_s)");
+    if (!(parsed && a.is_object())) break;
+    const auto f = a.find("frame");
+    if (f == a.end() || !f->is_number_integer() || f->get<long long>() >= in.frame) break;
   }
-  const std::string line = pending_.substr(0, eol);
-  pending_.erase(0, eol + 1);
 
   FrameResult r;
   r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -320,25 +403,20 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
     lost_detail_ = why;
     return r;
   };
-  nlohmann::json a;
-  try {
-    a = nlohmann::json::parse(line);
-  } catch (const nlohmann::json::exception&) {
-    return lost("the answer is not JSON: " + quoted(line));
-  }
-  if (!a.is_object()) return lost("the answer is not a JSON object: " + quoted(line));
+  if (!parsed) return lost("the answer is not JSON: " + quote_answer(line));
+  if (!a.is_object()) return lost("the answer is not a JSON object: " + quote_answer(line));
   const auto frame = a.find("frame");
   if (frame == a.end() || !frame->is_number_integer() || frame->get<long long>() != in.frame)
-    return lost("the answer is not for frame " + std::to_string(in.frame) + ": " + quoted(line));
+    return lost("the answer is not for frame " + std::to_string(in.frame) + ": " + quote_answer(line));
   if (const auto l = a.find("lost"); l != a.end() && l->is_boolean() && l->get<bool>()) {
     const auto why = a.find("reason");
     return lost("the tracker says lost" +
-                (why != a.end() && why->is_string() ? ": " + quoted(why->get<std::string>())
+                (why != a.end() && why->is_string() ? ": " + quote_answer(why->get<std::string>())
                                                     : std::string()));
   }
   const auto nodes = a.find("nodes");
   if (nodes == a.end() || !nodes->is_array())
-    return lost("the answer has no \"nodes\" list: " + quoted(line));
+    return lost("the answer has no \"nodes\" list: " + quote_answer(line));
   if (nodes->size() != static_cast<std::size_t>(nodes_))
     return lost("the answer has " + std::to_string(nodes->size()) + " nodes, expected " +
                 std::to_string(nodes_));
@@ -346,15 +424,15 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
   for (std::size_t j = 0; j < nodes->size(); ++j) {
     const nlohmann::json& q = (*nodes)[j];
     if (!q.is_array() || q.size() != 3)
-      return lost("node " + std::to_string(j) + " is not [x, y, z]: " + quoted(q.dump()));
+      return lost("node " + std::to_string(j) + " is not [x, y, z]: " + quote_answer(q.dump()));
     for (int c = 0; c < 3; ++c) {
       if (!q[static_cast<std::size_t>(c)].is_number())
         return lost("node " + std::to_string(j) + " is not [x, y, z] of numbers: " +
-                    quoted(q.dump()));
+                    quote_answer(q.dump()));
       const double v = q[static_cast<std::size_t>(c)].get<double>();
       if (!std::isfinite(v) || std::abs(v) > kMaxCoordinate)
         return lost("node " + std::to_string(j) + " has a coordinate that is not a finite " +
-                    "number within 100 m: " + quoted(q.dump()));
+                    "number within 100 m: " + quote_answer(q.dump()));
       r.nodes[j][c] = v;
     }
   }

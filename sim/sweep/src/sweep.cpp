@@ -244,19 +244,29 @@ std::vector<std::string> sweep_columns(const SweepSpec& spec) {
 
 std::vector<std::string> sweep_timing_columns() { return {std::begin(kTiming), std::end(kTiming)}; }
 
-std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int threads) {
+std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int threads,
+                               const std::atomic<bool>* cancel) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto [cell, scene] = load_cell(spec, index);
   EpisodeOptions o;
   o.frames = spec.frames;
   o.modes = spec.modes;
   o.external = spec.external;
+  o.cancel = cancel;
   o.threads = threads;
   o.chain_only_images = true;  // a cell writes numbers only, never an image
   Episode e(scene, o);
   const std::vector<std::string> names = e.names();
   const std::size_t m = names.size();
-  while (e.done() < e.frames()) (void)e.step();
+  std::vector<int> lost(names.size(), 0);
+  std::vector<std::string> first(names.size());
+  while (e.done() < e.frames()) {
+    const EpisodeFrame& f = e.step();
+    for (std::size_t k = 0; k < names.size(); ++k)
+      if (!f.lost_details[k].empty() && lost[k]++ == 0)
+        first[k] = "frame " + std::to_string(f.frame) + ": " + f.lost_details[k];
+  }
+  e.stop_external();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::vector<EpisodeSummary> sums = e.summaries();
   std::vector<SweepRow> rows;
@@ -272,6 +282,9 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
     for (const EpisodeMetric& metric : episode_metrics(s)) r.values.push_back(metric_text(metric));
     r.timing = {std::to_string(index), mode, format_shortest(s.time.mean * 1e3), format_shortest(s.time.p95 * 1e3),
                 format_shortest(s.time.max * 1e3), format_shortest(wall)};
+    if (lost[k] > 0)
+      r.lost_note = mode + ": " + std::to_string(lost[k]) + " frame(s) lost, the first (" +
+                    first[k] + ")";
     rows.push_back(std::move(r));
   }
   return rows;

@@ -3,6 +3,7 @@
 /// cloud, every compared tracker and the scoring. Streams: step() produces one frame and
 /// keeps nothing of earlier ones but the scorers' few numbers per frame.
 
+#include <atomic>
 #include <memory>
 #include <optional>
 #include <string>
@@ -24,6 +25,9 @@ struct EpisodeOptions {
   /// started once per episode (a process, docs/protocol.md) with the scene's `external`
   /// settings. Names must differ from each other and from the modes'.
   std::vector<ExternalTrackerSpec> external;
+  /// Raised (Ctrl-C): an external tracker's frame stops waiting, and step() throws
+  /// ExternalTrackerInterrupted with no frame scored. Not owned; nullptr: never.
+  const std::atomic<bool>* cancel = nullptr;
   int threads = 0;  ///< sensor threads (0: the OpenMP default)
   /// When the scene segments by label (ExtractParams::Mode::truth), render only the
   /// pixels the cloud can be made of: the chain's box grown by the leakage margin (see
@@ -89,6 +93,9 @@ class Episode {
   /// external tracker that dies or hangs throws ExternalTrackerError.
   const EpisodeFrame& step();
   [[nodiscard]] const EpisodeTimes& last_times() const;
+  /// Ends the external trackers' processes now (as the destructor would): after the last
+  /// frame, so that they do not outlive the episode's work. step() may not follow.
+  void stop_external();
   /// Per compared tracker (names()), over the frames run so far.
   [[nodiscard]] std::vector<EpisodeSummary> summaries() const;
 

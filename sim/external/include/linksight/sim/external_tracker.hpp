@@ -7,7 +7,9 @@
 
 #include <Eigen/Geometry>
 
+#include <atomic>
 #include <filesystem>
+#include <stdexcept>
 #include <memory>
 #include <string>
 #include <sys/types.h>
@@ -54,6 +56,13 @@ class ExternalTrackerError : public io::InputError {
   using io::InputError::InputError;
 };
 
+/// step() gave up waiting because the cancel flag was raised (Ctrl-C): the frame has no
+/// result; the tracker's process is ended.
+class ExternalTrackerInterrupted : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// One frame as the tracker is given it.
 struct ExternalFrameInput {
   int frame = 0;
@@ -70,8 +79,8 @@ class ExternalTracker {
   ExternalTracker(ExternalTrackerSpec spec, const ExternalParams& params, int nodes,
                   const io::Intrinsics& K, const ComponentGeometry& geometry,
                   const BasePriorParams& prior);
-  /// Closes its stdin (the end of the episode), gives it 2 s to exit, then kills it; it is
-  /// always reaped.
+  /// Closes its stdin (the end of the episode), gives it 2 s to exit, then kills its
+  /// process group; it is always reaped.
   ~ExternalTracker();
   ExternalTracker(const ExternalTracker&) = delete;
   ExternalTracker& operator=(const ExternalTracker&) = delete;
@@ -82,13 +91,20 @@ class ExternalTracker {
   /// Throws ExternalTrackerError when the process dies, hangs or cannot be written to.
   /// time_s is the wall time from sending to the answer, the pipe included.
   FrameResult step(const ExternalFrameInput& in);
+  /// While step() waits, it looks at `cancel` every 50 ms and gives up when it is set
+  /// (ExternalTrackerInterrupted). Not owned; nullptr: never.
+  void set_cancel(const std::atomic<bool>* cancel) { cancel_ = cancel; }
   /// Why the last frame was lost ("" when it was not).
   [[nodiscard]] const std::string& lost_detail() const { return lost_detail_; }
   [[nodiscard]] const ExternalTrackerSpec& spec() const { return spec_; }
 
  private:
   [[noreturn]] void fail(int frame, const std::string& what, double wait_s = 0.0);
-  bool write_all(const char* data, std::size_t n, double deadline);
+  // Waits until `fd` is ready for `events` or the deadline passes (false), in slices that
+  // look at the cancel flag and at the process: one that ended fails the frame.
+  bool wait_for(int fd, short events, double deadline, int frame);
+  bool write_all(const char* data, std::size_t n, double deadline, int frame);
+  std::string read_line(double deadline, int frame);
   std::string stderr_tail() const;
   void stop();
 
@@ -98,9 +114,11 @@ class ExternalTracker {
   io::Intrinsics K_;
   ComponentGeometry geometry_;
   BasePriorParams prior_;
-  pid_t pid_ = -1;
+  pid_t pid_ = -1;   // the process started (a shell), until reaped
+  pid_t pgid_ = -1;  // its process group: the tracker and whatever it started
   int to_child_ = -1, from_child_ = -1;
-  std::filesystem::path stderr_path_;
+  int stderr_fd_ = -1;  // an unlinked temporary file: nothing is left on disk
+  const std::atomic<bool>* cancel_ = nullptr;
   std::string pending_;  // bytes read past the last answer's newline
   std::string lost_detail_;
   bool first_ = true;

@@ -6,6 +6,7 @@
 /// `--set key=value` overrides. Its seed is derived from its values, never from its
 /// index or from who runs it, so a cell's row is the same on any machine and in any shard.
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -78,13 +79,17 @@ struct SweepRow {
   std::size_t cell = 0;
   std::size_t mode = 0;  ///< position of the row's mode among the cell's modes
   std::vector<std::string> values, timing;
+  /// An external tracker's lost frames in words ("" for none): how many, and the first
+  /// one's frame and reason (the tables count them in lost_frames).
+  std::string lost_note;
 };
 
 /// Runs one cell's episode (sensor threads: 0 = OpenMP default; results do not depend
 /// on it). Throws io::InputError for a bad scene or override, naming it, and
 /// ExternalTrackerError when an external tracker dies or hangs (the cell failed).
 [[nodiscard]] std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index,
-                                             int threads);
+                                             int threads,
+                                             const std::atomic<bool>* cancel = nullptr);
 
 /// The cells shard `shard` of `count` runs: those with index % count == shard.
 [[nodiscard]] std::vector<std::size_t> shard_cells(const SweepSpec& spec, int shard, int count);
