@@ -13,6 +13,7 @@
 
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/base_pose.hpp"
+#include "linksight/io/chain_json.hpp"
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/intrinsics.hpp"
@@ -175,15 +176,6 @@ nlohmann::json read_json(const fs::path& path) {
   return j;
 }
 
-// chain.json from ComponentGeometry's one field list: numbers only (its fields are).
-struct ChainJsonOut {
-  nlohmann::json& j;
-  template <class T>
-  void operator()(const char* key, T& v, fields::Rule = {}) {
-    j[key] = v;
-  }
-};
-
 struct ChainJsonIn {
   const nlohmann::json& j;
   const std::string& file;
@@ -218,10 +210,7 @@ double read_camera_fps(const fs::path& path) {
 }
 
 void write_chain_json(const fs::path& path, const ComponentGeometry& geometry) {
-  nlohmann::json j = nlohmann::json::object();
-  ChainJsonOut out{j};
-  const_cast<ComponentGeometry&>(geometry).fields(out);
-  io::write_file_atomic(path, [&](std::ostream& os) { os << j.dump(2) << '\n'; });
+  io::write_file_atomic(path, [&](std::ostream& os) { os << io::chain_json(geometry, 2) << '\n'; });
 }
 
 ComponentGeometry read_chain_json(const fs::path& path) {

@@ -23,6 +23,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "linksight/io/chain_json.hpp"
 #include "linksight/tracker/backend.hpp"
 #include "linksight/tracker/format.hpp"
 #include "linksight/tracker/mode.hpp"
@@ -348,15 +349,7 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
                       {"points", cloud.size()}};
   if (first_) {
     h["intrinsics"] = nlohmann::json::parse(io::intrinsics_json(K_));
-    // The component geometry under a scene's `chain` keys (its one field list).
-    nlohmann::json chain = nlohmann::json::object();
-    struct Out {
-      nlohmann::json& j;
-      void operator()(const char* key, double& v, fields::Rule = {}) { j[key] = v; }
-      void operator()(const char* key, int& v, fields::Rule = {}) { j[key] = v; }
-    } out{chain};
-    geometry_.fields(out);
-    h["chain"] = chain;
+    h["chain"] = nlohmann::json::parse(io::chain_json(geometry_));
   }
   if (in.X_CB != nullptr) {
     nlohmann::json X = nlohmann::json::array();
