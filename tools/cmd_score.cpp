@@ -29,8 +29,6 @@
 #include "linksight/io/nodes_csv.hpp"
 #include "linksight/io/ply.hpp"
 #include "linksight/sim/recording.hpp"
-#include "linksight/tracker/backend.hpp"
-#include "linksight/tracker/sdf.hpp"
 #include "run_report.hpp"
 
 namespace linksight::cli {
@@ -216,21 +214,8 @@ int run_score(const ScoreOptions& o) {
   std::vector<sim::EpisodeScorer> scorers(estimates.size());
   std::vector<FrameResult> results(estimates.size());
   std::vector<sim::FrameScore> scores(estimates.size());
-  std::vector<float> x, y, z;
   for (std::size_t f = 0; f < frames; ++f) {
     const Cloud cloud = io::read_ply(clouds[f]);
-    // The points a tracker keeps (Tracker::step), which its SDF metric is over.
-    x.clear();
-    y.clear();
-    z.clear();
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      const float px = cloud.xyz[3 * i], py = cloud.xyz[3 * i + 1], pz = cloud.xyz[3 * i + 2];
-      if (check_point(px, py, pz) != PointCheck::kept) continue;
-      x.push_back(px);
-      y.push_back(py);
-      z.push_back(pz);
-    }
-    const PointsView view{x, y, z};
     const Nodes& truth_C = *truth[f];
     double motion = 0;
     if (f > 0)
@@ -244,7 +229,9 @@ int run_score(const ScoreOptions& o) {
       const std::optional<Nodes>& e = estimates[k].frames[f];
       r.lost = !e;  // a frame the estimate does not give is lost, not an error
       r.nodes = e ? *e : Nodes{};
-      r.sdf_error = e ? sdf_error(view, r.nodes, geometry) : std::numeric_limits<double>::quiet_NaN();
+      // The SDF metric over the points a tracker keeps, as a built-in mode reports it.
+      r.sdf_error = e ? sim::cloud_sdf_error(cloud, r.nodes, geometry)
+                      : std::numeric_limits<double>::quiet_NaN();
       scores[k] = sim::score_frame(r.nodes, truth_C);
       scorers[k].add(scores[k], r.sdf_error, false, r.time_s, occluded[f], motion);
     }
