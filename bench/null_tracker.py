@@ -10,6 +10,8 @@ nodes = None
 for line in stdin:
     h = json.loads(line)
     stdin.read(12 * h["points"])
+    if "depth" in h:
+        stdin.read(2 * h["depth"]["width"] * h["depth"]["height"])
     if nodes is None:
         nodes = [[0.045 * j, 0.0, 0.6] for j in range(h["nodes"])]
     sys.stdout.write(json.dumps({"frame": h["frame"], "nodes": nodes}) + "\n")

@@ -34,6 +34,8 @@ while True:
     h = json.loads(line)
     f = h["frame"]
     stdin.read(12 * h["points"])
+    if "depth" in h:
+        stdin.read(2 * h["depth"]["width"] * h["depth"]["height"])
     nodes = [[0.045 * j, 0.0, 0.6] for j in range(h["nodes"])]
     answer = {"frame": f, "nodes": nodes}
     if f == at:

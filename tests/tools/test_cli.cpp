@@ -834,6 +834,39 @@ TEST_F(Cli, ExternalTrackerFailuresAreNamed) {
   EXPECT_NE(WEXITSTATUS(left), 0) << "a tracker's process was left behind";
 }
 
+// external.send_depth: each frame's depth image follows its cloud, the camera's whole frame
+// as `render` writes it (a client reports its size, valid pixels and sum of units).
+TEST_F(Cli, ExternalTrackerGetsTheDepthImage) {
+  // The README demo's scene: a table and a wall fill most of a whole frame.
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml";
+  ASSERT_EQ(run("render --quiet --scene " + scene + " --frames 2 --out " + (dir / "rec").string(),
+                dir).code, 0);
+  const CliRun r = run("run " + scene + " --frames 2 --no-figures --set external.send_depth=true"
+                       " --tracker 'd=" + std::string(LINKSIGHT_PYTHON3) + " " +
+                       LINKSIGHT_TEST_TOOLS_DIR + "/depth_tracker.py' --compare paper,d --out " +
+                       out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream js(out / "summary.json");
+  const nlohmann::json j = nlohmann::json::parse(js);
+  const auto& lost = j["modes"]["d"]["external"]["lost_frames"];
+  ASSERT_EQ(lost.size(), 2u);
+  for (int f = 0; f < 2; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.png", f);
+    const io::DepthImage d = io::read_depth_png(dir / "rec" / "depth" / name);
+    long long sum = 0, valid = 0;
+    for (const std::uint16_t v : d.data) {
+      sum += v;
+      valid += v > 0;
+    }
+    EXPECT_GT(valid, 100000) << "a whole frame: table and wall";
+    const std::string want = std::to_string(d.width) + "x" + std::to_string(d.height) +
+                             " valid=" + std::to_string(valid) + " sum=" + std::to_string(sum);
+    EXPECT_NE(lost[f]["reason"].get<std::string>().find(want), std::string::npos)
+        << lost[f]["reason"] << " vs " << want;
+  }
+}
+
 // Ctrl-C while an external tracker hangs in a frame: run stops waiting at once (not at the
 // timeout), keeps the frames done (exit 130, "interrupted"), and ends the tracker.
 TEST_F(Cli, ExternalTrackerCtrlCWhileItHangs) {

@@ -125,6 +125,8 @@ def main():
         raw = stdin.read(12 * n)
         if len(raw) != 12 * n:
             return 0
+        if "depth" in h:  # scene key external.send_depth: not used here
+            stdin.read(2 * h["depth"]["width"] * h["depth"]["height"])
         points = np.frombuffer(raw, dtype="<f4").reshape(n, 3).astype(np.float64)
         points = points[np.isfinite(points).all(axis=1) & (np.abs(points) <= 100).all(axis=1)]
         if len(points) < h["nodes"]:

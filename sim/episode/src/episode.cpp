@@ -105,6 +105,8 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
   for (const TrackerMode mode : m.modes)
     reads_depth = reads_depth || (mode.spec().update.name == kUpdateChainFit.name &&
                                   scene.tracker.policy.chain_fit.free_space_below > 0);
+  // So does an external tracker sent the depth image: it is the camera's whole frame.
+  reads_depth = reads_depth || (!options.external.empty() && scene.external.send_depth);
   m.chain_only = options.chain_only_images && !reads_depth &&
                  scene.segmentation.mode == ExtractParams::Mode::truth;
   // Leaked background pixels lie within leakage_px of a link pixel.
@@ -229,7 +231,7 @@ const EpisodeFrame& Episode::step_frame() {
       o.results[k] = m.trackers[k].step(m.cloud, X_CB, m.depth ? &*m.depth : nullptr);
     } else {
       ExternalTracker& e = *m.external[k - m.trackers.size()];
-      o.results[k] = e.step(ExternalFrameInput{f, o.t, &m.cloud, X_CB});
+      o.results[k] = e.step(ExternalFrameInput{f, o.t, &m.cloud, X_CB, &m.image.depth});
       o.lost_details[k] = e.lost_detail();
       // Its SDF metric as a mode's: over the points a tracker keeps.
       if (!o.results[k].lost)

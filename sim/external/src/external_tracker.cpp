@@ -359,13 +359,23 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
                       {"sigma_m", prior_.sigma_m},
                       {"sigma_deg", prior_.sigma_rad * 180.0 / 3.14159265358979323846}};
   }
+  const io::DepthImage* depth = params_.send_depth ? in.depth : nullptr;
+  if (params_.send_depth) {
+    if (depth == nullptr || depth->data.size() != static_cast<std::size_t>(depth->width) *
+                                                       static_cast<std::size_t>(depth->height))
+      throw std::logic_error("external tracker: send_depth without a whole depth image");
+    h["depth"] = {{"width", depth->width}, {"height", depth->height}};
+  }
   first_ = false;
   const std::string header = h.dump() + "\n";
-  // Little-endian float32 x y z per point: the host's own layout.
+  // Little-endian float32 x y z per point, then uint16 depth: the host's own layout.
   static_assert(sizeof(float) == 4 && std::endian::native == std::endian::little);
   if (!write_all(header.data(), header.size(), deadline, in.frame) ||
       !write_all(reinterpret_cast<const char*>(cloud.xyz.data()), cloud.xyz.size() * 4,
-                 deadline, in.frame))
+                 deadline, in.frame) ||
+      (depth != nullptr &&
+       !write_all(reinterpret_cast<const char*>(depth->data.data()), depth->data.size() * 2,
+                  deadline, in.frame)))
     fail(in.frame, "stopped reading its input", 1.0);
   // The answer: one line. A line for an earlier frame (the rest of an answer a stray line
   // of output displaced) is passed over, so that one stray line costs one frame.

@@ -1,7 +1,9 @@
 // chain-fit as an external tracker (docs/protocol.md, version 1): reads each frame's
 // header and cloud from stdin, runs linksight::Tracker in mode chain-fit on it (with the
 // base pose when the header gives one) and answers the nodes on stdout.
+#include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -45,6 +47,11 @@ int main() {
     linksight::Cloud cloud;
     cloud.xyz.resize(3 * n);
     if (std::fread(cloud.xyz.data(), 12, n, stdin) != n) return 0;  // the episode ended
+    if (h.contains("depth")) {  // scene key external.send_depth: not used here
+      std::vector<std::uint16_t> depth(h["depth"].at("width").get<std::size_t>() *
+                                       h["depth"].at("height").get<std::size_t>());
+      if (std::fread(depth.data(), 2, depth.size(), stdin) != depth.size()) return 0;
+    }
     Eigen::Isometry3d X_CB;
     const bool pose = h.contains("base_pose");
     if (pose)

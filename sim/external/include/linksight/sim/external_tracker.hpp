@@ -14,6 +14,7 @@
 #include <string>
 #include <sys/types.h>
 
+#include "linksight/io/depth_png.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/intrinsics.hpp"
 #include "linksight/tracker/cloud.hpp"
@@ -41,9 +42,12 @@ struct ExternalParams {
   /// Per frame, from the first byte sent to the answer's end (the first frame includes
   /// the program's start: an interpreter loading its libraries) [s].
   double timeout_s = 60.0;
+  /// Send each frame's 16-bit depth image after its cloud (the camera's whole frame).
+  bool send_depth = false;
   template <class Archive>
   void fields(Archive& ar) {
     ar("timeout_s", timeout_s, fields::in(0.01, 86400));
+    ar("send_depth", send_depth);
   }
   void validate() const;  ///< throws fields::FieldError naming the key
 };
@@ -69,6 +73,9 @@ struct ExternalFrameInput {
   double t = 0;                               ///< [s]
   const Cloud* cloud = nullptr;               ///< camera frame [m]
   const Eigen::Isometry3d* X_CB = nullptr;    ///< the base pose prior, when given
+  /// The frame's depth image (intrinsics.depth_scale per unit, 0 = none); sent when
+  /// ExternalParams::send_depth, and then required.
+  const io::DepthImage* depth = nullptr;
 };
 
 class ExternalTracker {
