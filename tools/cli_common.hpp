@@ -119,13 +119,17 @@ inline std::vector<io::DepthImage> read_depth_frames(const std::string& frames,
   for (const std::filesystem::path& p : io::list_frames(frames)) {
     if (!io::is_depth_png(p))
       throw io::InputError(p.string() + ": " + command + " reads 16-bit depth PNGs only");
-    images.push_back(io::read_depth_png(p));
-    const io::DepthImage& f = images.back();
-    if (f.width != K.width || f.height != K.height)
-      throw io::InputError(p.string() + ": " + std::to_string(f.width) + "x" +
-                           std::to_string(f.height) + " does not match the intrinsics (" +
+    // The size from the header, before anything is decoded (a header may claim anything).
+    const io::PngSize size = io::png_size(p);
+    if (size.bit_depth != 16)
+      throw io::InputError(p.string() + ": depth PNG must be 16-bit, this one is " +
+                           std::to_string(size.bit_depth) + "-bit");
+    if (size.width != K.width || size.height != K.height)
+      throw io::InputError(p.string() + ": " + std::to_string(size.width) + "x" +
+                           std::to_string(size.height) + " does not match the intrinsics (" +
                            intrinsics + ": " + std::to_string(K.width) + "x" +
                            std::to_string(K.height) + ")");
+    images.push_back(io::read_depth_png(p));
   }
   return images;
 }

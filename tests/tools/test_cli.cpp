@@ -1435,6 +1435,33 @@ TEST_F(Cli, PngSizeDiffersFromIntrinsics) {
   io::write_intrinsics(dir / "in" / "intrinsics.json", io::Intrinsics{});
   expect_bad_input("--input " + (dir / "in" / "small.png").string(), "small.png",
                    "image is 32x24 but intrinsics say 640x480");
+  // Issue 19, F4: a header that claims 23000x23000 16-bit pixels (a 1 GB image) over a few
+  // bytes of data is refused from the header, before anything is decoded: under a 600 MB
+  // address-space limit the refusal still names the file (a decode would die of it).
+  std::string bomb("\x89PNG\r\n\x1a\n", 8);
+  const unsigned char ihdr[] = {0, 0, 0, 13, 'I', 'H', 'D', 'R', 0, 0, 0x59, 0xD8, 0, 0, 0x59,
+                                0xD8, 16, 0, 0, 0, 0, 0, 0, 0, 0};
+  bomb.append(reinterpret_cast<const char*>(ihdr), sizeof ihdr);
+  bomb.append(1000, '\0');
+  std::ofstream(dir / "in" / "bomb.png", std::ios::binary) << bomb;
+  const std::string cmd = "bash -c 'ulimit -v 600000; " + std::string(LINKSIGHT_EXE) +
+                          " track --input " + (dir / "in" / "bomb.png").string() + " --out " +
+                          out.string() + "' >/dev/null 2>" + (dir / "bomb.err").string();
+  const int status = std::system(cmd.c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  const std::string err = slurp_text(dir / "bomb.err");
+  EXPECT_NE(err.find("bomb.png: image is 23000x23000 but intrinsics say 640x480"),
+            std::string::npos)
+      << err;
+  EXPECT_FALSE(fs::exists(out));
+  // Without intrinsics to compare with (the reader alone), the pixel limit refuses it.
+  try {
+    (void)io::read_depth_png(dir / "in" / "bomb.png");
+    ADD_FAILURE() << "a 23000x23000 header was decoded";
+  } catch (const io::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("is more than a depth image may have"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST_F(Cli, MissingIntrinsics) {
@@ -1453,6 +1480,11 @@ TEST_F(Cli, MalformedIntrinsics) {
   io::write_depth_png(dir / "in" / "0.png",
                       io::DepthImage{32, 24, std::vector<std::uint16_t>(32 * 24, 4000)});
   std::ofstream(dir / "in" / "intrinsics.json") << "{\"width\": 32, ";
+  expect_bad_input("--input " + (dir / "in" / "0.png").string(), "intrinsics.json",
+                   "malformed JSON");
+  // Issue 19, F1: a number beyond double's range is nlohmann's out_of_range, not a
+  // parse_error; it was an internal error (exit 1) without the file's name.
+  std::ofstream(dir / "in" / "intrinsics.json") << "{\"width\": 1e999}";
   expect_bad_input("--input " + (dir / "in" / "0.png").string(), "intrinsics.json",
                    "malformed JSON");
 }

@@ -103,6 +103,16 @@ Cloud load_frame(const fs::path& frame, const Intrinsics* intrinsics,
   if (e != ".png")
     throw InputError(frame.string() + ": unsupported frame type (expected .ply or .png)");
   if (intrinsics == nullptr) throw InputError(frame.string() + ": depth PNG needs intrinsics");
+  // The size from the header first: a header may claim anything (issue 19, F4).
+  const PngSize size = png_size(frame);
+  if (size.bit_depth != 16)
+    throw InputError(frame.string() + ": depth PNG must be 16-bit, this one is " +
+                     std::to_string(size.bit_depth) + "-bit");
+  if (size.width != intrinsics->width || size.height != intrinsics->height)
+    throw InputError(frame.string() + ": image is " + std::to_string(size.width) + "x" +
+                     std::to_string(size.height) + " but intrinsics say " +
+                     std::to_string(intrinsics->width) + "x" +
+                     std::to_string(intrinsics->height));
   DepthImage img = read_depth_png(frame);
   try {
     Cloud cloud = depth_to_cloud(img, *intrinsics, options);

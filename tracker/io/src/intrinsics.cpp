@@ -103,7 +103,7 @@ Intrinsics read_intrinsics(const std::filesystem::path& path) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e999
     throw InputError(file + ": malformed JSON: " + e.what());
   }
   if (!j.is_object()) throw InputError(file + ": expected a JSON object");

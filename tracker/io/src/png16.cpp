@@ -99,8 +99,31 @@ void write_depth_png(const std::filesystem::path& path, const DepthImage& image)
       /*binary=*/true);
 }
 
+PngSize png_size(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(file + ": cannot open");
+  // The signature, then the IHDR chunk: length, "IHDR", width and height big-endian.
+  unsigned char head[25] = {};
+  in.read(reinterpret_cast<char*>(head), sizeof head);
+  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  if (in.gcount() != sizeof head || std::memcmp(head, kSignature, 8) != 0 ||
+      std::memcmp(head + 12, "IHDR", 4) != 0)
+    throw InputError(file + ": not a readable PNG (no PNG header)");
+  const auto be32 = [&](int at) {
+    return (static_cast<long long>(head[at]) << 24) | (head[at + 1] << 16) | (head[at + 2] << 8) |
+           head[at + 3];
+  };
+  return {be32(16), be32(20), head[24]};
+}
+
 DepthImage read_depth_png(const std::filesystem::path& path) {
   const std::string file = path.string();
+  const PngSize size = png_size(path);
+  if (size.width * size.height > kMaxDepthPngPixels)
+    throw InputError(file + ": " + std::to_string(size.width) + "x" + std::to_string(size.height) +
+                     " pixels is more than a depth image may have (" +
+                     std::to_string(kMaxDepthPngPixels) + ")");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(file + ": cannot open");
   const std::vector<char> bytes((std::istreambuf_iterator<char>(in)),

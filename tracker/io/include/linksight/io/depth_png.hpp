@@ -19,8 +19,21 @@ struct DepthImage {
   std::vector<std::uint16_t> data;
 };
 
+/// The most pixels a depth PNG may have (16 Mpx, 32 MB decoded): a depth camera's frame is
+/// far smaller, and a header may claim anything.
+inline constexpr long long kMaxDepthPngPixels = 1LL << 24;
+
+/// A PNG's width, height and bits per sample from its header alone, nothing decoded.
+/// Throws InputError naming the file when it is not a PNG.
+struct PngSize {
+  long long width = 0, height = 0;
+  int bit_depth = 0;
+};
+[[nodiscard]] PngSize png_size(const std::filesystem::path& path);
+
 /// Reads a single-channel 16-bit PNG. Throws InputError naming the file when it is not
-/// a PNG, not 16-bit or not single-channel.
+/// a PNG, not 16-bit or not single-channel, or has more than kMaxDepthPngPixels (checked
+/// on the header, before anything is decoded).
 [[nodiscard]] DepthImage read_depth_png(const std::filesystem::path& path);
 /// Writes a 16-bit grayscale PNG (stored deflate blocks), atomically.
 void write_depth_png(const std::filesystem::path& path, const DepthImage& image);
