@@ -67,9 +67,12 @@ class InterruptGuard {
 /// --compare and --tracker NAME=COMMAND into built-in modes and external trackers: an item
 /// of `compare` is a --tracker's NAME or a mode. Empty `compare`: no mode given (the
 /// scene's) and every --tracker. A --tracker that --compare does not name is refused.
-inline void split_compare(const std::string& compare, const std::vector<std::string>& trackers,
-                          std::vector<TrackerMode>& modes,
-                          std::vector<sim::ExternalTrackerSpec>& external) {
+/// Returns whether the scene's own mode runs (sim::EpisodeOptions::scene_mode): only
+/// without --compare; a --compare that names trackers alone runs those alone.
+[[nodiscard]] inline bool split_compare(const std::string& compare,
+                                        const std::vector<std::string>& trackers,
+                                        std::vector<TrackerMode>& modes,
+                                        std::vector<sim::ExternalTrackerSpec>& external) {
   std::vector<sim::ExternalTrackerSpec> given;
   for (const std::string& t : trackers) {
     given.push_back(sim::parse_external_tracker(t));
@@ -82,7 +85,7 @@ inline void split_compare(const std::string& compare, const std::vector<std::str
   external.clear();
   if (compare.empty()) {
     external = given;
-    return;
+    return true;
   }
   std::vector<bool> used(given.size(), false);
   std::stringstream ss(compare);
@@ -107,6 +110,7 @@ inline void split_compare(const std::string& compare, const std::vector<std::str
     if (!used[k])
       throw std::invalid_argument("--tracker '" + given[k].name + "=...': not in --compare '" +
                                   compare + "'");
+  return false;
 }
 
 /// The 16-bit depth PNGs of `frames` (a directory or one file), each checked against the

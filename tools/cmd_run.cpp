@@ -78,7 +78,7 @@ int run_run(const RunOptions& o) {
   eo.cancel = &interrupted();
   eo.frames = o.frames;
   eo.threads = o.threads;
-  split_compare(o.compare, o.trackers, eo.modes, eo.external);
+  eo.scene_mode = split_compare(o.compare, o.trackers, eo.modes, eo.external);
   const std::set<int> overlay_frames =
       choose_overlay_frames(sim::camera_frames(scene, o.frames), o.overlays);
   // Nothing but the overlays' depth images is written, so the other frames need only the
@@ -151,7 +151,7 @@ int run_run(const RunOptions& o) {
   };
   summary["modes"] = report.modes_json(summaries);
   for (std::size_t k = 0; k < eo.external.size(); ++k) {
-    const std::size_t at = eo.modes.empty() ? 1 + k : eo.modes.size() + k;
+    const std::size_t at = names.size() - eo.external.size() + k;
     summary["modes"][names[at]]["external"] = {{"command", eo.external[k].command},
                                                {"lost_frames", lost_notes[at]}};
   }

@@ -122,7 +122,7 @@ int run_sweep(const SweepOptions& o) {
   if (!o.grid.empty()) spec.axes = sim::read_grid(o.grid);
   for (const std::string& a : o.axes) spec.axes.push_back(sim::parse_axis(a));
   spec.set = o.set;
-  split_compare(o.compare, o.trackers, spec.modes, spec.external);
+  spec.scene_mode = split_compare(o.compare, o.trackers, spec.modes, spec.external);
   spec.frames = o.frames;
   spec.validate();
   const auto [shard, count] = which_shard(o.shard);

@@ -11,7 +11,8 @@ Answers every frame with 12 nodes along x (a straight link), except at FRAME (de
             than 64 KiB, 5.5k points, then fills the pipe)
   garbage   answers 'hello, linksight' (not JSON), then goes on
   count     answers 11 nodes, then goes on
-  nan       answers a coordinate 1e300, then goes on
+  far       answers a coordinate 1e300, then goes on
+  nan       answers a coordinate NaN (json.dumps writes a bare NaN, not JSON), then goes on
   other     answers for another frame, then goes on
   lost      answers "lost" with a reason, then goes on
   stray     prints a stray line before its answer, then goes on
@@ -57,8 +58,10 @@ while True:
             continue
         if how == "count":
             answer["nodes"] = nodes[:11]
-        if how == "nan":
+        if how == "far":
             answer["nodes"][5][1] = 1e300
+        if how == "nan":
+            answer["nodes"][5][1] = float("nan")  # json.dumps writes a bare NaN: not JSON
         if how == "other":
             answer["frame"] = f + 7
         if how == "lost":

@@ -807,7 +807,9 @@ TEST_F(Cli, ExternalTrackerFailuresAreNamed) {
            {"garbage", "the answer is not JSON: 'hello, linksight'"},
            {"stray", "the answer is not JSON: 'debug: frame 3'"},
            {"count", "the answer has 11 nodes, expected 12"},
-           {"nan", "node 5 has a coordinate that is not a finite number within 100 m"},
+           {"far", "node 5 has a coordinate that is not a finite number within 100 m"},
+           {"nan", "the answer is not JSON: it holds NaN, which JSON has no number for (a "
+                   "node must be finite)"},
            {"other", "the answer is not for frame 3"},
            {"lost", "the tracker says lost: 'the link left my view'"}}) {
     const fs::path o = dir / how;
@@ -943,6 +945,74 @@ TEST_F(Cli, SweepWithExternalTrackersListsFailedCells) {
                            " --tracker 'bad=" + som + "' --compare paper,bad --shard 0/2 --out " +
                            (dir / "two").string(), dir);
   EXPECT_EQ(other.code, 2) << other.err;
+}
+
+// --compare naming an external tracker alone runs it alone (no built-in mode beside it),
+// in run and in sweep, with the figures, heatmaps and 3-D view drawn for it; --no-figures
+// leaves the view out. In a sweep, a tracker that hangs fails its cell, one that answers
+// garbage loses a frame with a warning naming the cell, and the other cells go on.
+TEST_F(Cli, ExternalTrackerAloneInRunAndSweep) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const std::string som = std::string(LINKSIGHT_PYTHON3) + " " + LINKSIGHT_TRACKERS_DIR + "/som.py";
+  const CliRun r = run("run " + scene + " --frames 4 --tracker 'mine=" + som +
+                       "' --compare mine --out " + out.string(), dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto frames = frames_by_mode(out / "frames.csv");
+  ASSERT_EQ(frames.size(), 1u) << "mine alone";
+  EXPECT_EQ(frames.at("mine").size(), 4u);
+  std::ifstream js(out / "summary.json");
+  const nlohmann::json j = nlohmann::json::parse(js);
+  ASSERT_EQ(j["modes"].size(), 1u) << j["modes"].dump();
+  EXPECT_EQ(j["modes"]["mine"]["external"]["command"], som);
+  for (const char* f : {"view.html", "figures/node_error.png", "figures/tracker_time.png"})
+    EXPECT_GT(fs::exists(out / f) ? fs::file_size(out / f) : 0u, 10000u) << f;
+  const fs::path plain = dir / "plain";
+  const CliRun nf = run("run " + scene + " --frames 2 --no-figures --tracker 'mine=" + som +
+                        "' --compare mine --out " + plain.string(), dir);
+  ASSERT_EQ(nf.code, 0) << nf.err;
+  EXPECT_TRUE(fs::exists(plain / "frames.csv"));
+  EXPECT_FALSE(fs::exists(plain / "view.html")) << "--no-figures skips the view";
+  EXPECT_FALSE(fs::exists(plain / "view")) << "--no-figures skips the view's data";
+  EXPECT_FALSE(fs::exists(plain / "figures"));
+  // Without --compare the scene's own mode runs beside every --tracker.
+  const fs::path both = dir / "both";
+  const CliRun b = run("run " + scene + " --frames 2 --no-figures --tracker 'mine=" + som +
+                       "' --out " + both.string(), dir);
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_EQ(frames_by_mode(both / "frames.csv").size(), 2u);
+
+  // sweep --compare mine: one row per cell, heatmaps drawn; a hang fails its cell alone.
+  const std::string broken =
+      std::string(LINKSIGHT_PYTHON3) + " " + LINKSIGHT_TEST_TOOLS_DIR + "/broken_tracker.py";
+  const CliRun sw = run("sweep --scene " + scene + " --axis noise.scale=0,1 --frames 3"
+                        " --tracker 'mine=" + som + "' --compare mine --out " +
+                        (dir / "sweep").string(), dir);
+  ASSERT_EQ(sw.code, 0) << sw.err;
+  const auto rows = lines_of(dir / "sweep" / "cells.csv");
+  ASSERT_EQ(rows.size(), 3u) << "a row per cell, mine's alone";
+  EXPECT_EQ(rows[1].rfind("0,mine,", 0), 0u) << rows[1];
+  EXPECT_EQ(rows[2].rfind("1,mine,", 0), 0u) << rows[2];
+  std::size_t pngs = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir / "sweep"))
+    pngs += e.path().extension() == ".png" && fs::file_size(e.path()) > 5000;
+  EXPECT_GT(pngs, 0u) << "the sweep's heatmaps of mine";
+  // The hang at frame 4: the 0.1 s cell (frames 0-3) runs, the 0.2 s one times out.
+  const CliRun hang = run("sweep --scene " + scene + " --axis duration_s=0.1,0.2 --no-figures"
+                          " --set external.timeout_s=2 --tracker 'bad=" + broken +
+                          " hang 4' --compare bad --out " + (dir / "hang").string(), dir);
+  EXPECT_EQ(hang.code, 2) << hang.err;
+  EXPECT_NE(hang.err.find("cell 1 failed: external tracker 'bad'"), std::string::npos) << hang.err;
+  EXPECT_NE(hang.err.find("frame 4: did not answer within 2 s"), std::string::npos) << hang.err;
+  EXPECT_EQ(lines_of(dir / "hang" / "cells.csv").size(), 2u) << "cell 0's row";
+  // Garbage at frame 1: the frame is lost, the cell warns and stands.
+  const CliRun garbage = run("sweep --scene " + scene + " --axis noise.scale=0 --frames 3"
+                             " --no-figures --tracker 'bad=" + broken + " garbage 1'"
+                             " --compare bad --out " + (dir / "garbage").string(), dir);
+  EXPECT_EQ(garbage.code, 0) << garbage.err;
+  EXPECT_NE(garbage.err.find("warning: cell 0: bad: 1 frame(s) lost, the first (frame 1: "
+                             "the answer is not JSON: 'hello, linksight')"),
+            std::string::npos)
+      << garbage.err;
 }
 
 // --tracker and --compare: names are checked, and a tracker --compare leaves out is refused.

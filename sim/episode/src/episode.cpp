@@ -56,6 +56,8 @@ void EpisodeOptions::validate() const {
         throw std::invalid_argument("episode external tracker " + external[i].name +
                                     ": a mode's name");
   }
+  if (modes.empty() && !scene_mode && external.empty())
+    throw std::invalid_argument("episode: no tracker to run (no mode, no external tracker)");
   score.validate();
 }
 
@@ -96,7 +98,9 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
   Impl& m = *impl_;
   m.scene = scene;
   m.frames = camera_frames(scene, options.frames);
-  m.modes = options.modes.empty() ? std::vector<TrackerMode>{scene.tracker.mode} : options.modes;
+  m.modes = options.modes.empty() && options.scene_mode
+                ? std::vector<TrackerMode>{scene.tracker.mode}
+                : options.modes;
   m.world = make_world(scene);
   m.sensor = make_sensor(scene, options.threads);
   // A tracker that reads the depth image (chain-fit's free-space evidence) reads it

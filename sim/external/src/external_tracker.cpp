@@ -406,7 +406,16 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
     lost_detail_ = why;
     return r;
   };
-  if (!parsed) return lost("the answer is not JSON: " + quote_answer(line));
+  if (!parsed) {
+    // Python's json.dumps writes a non-finite float as a bare NaN or Infinity, which is
+    // not JSON: say so, as the token may lie past what the quote shows.
+    for (const char* token : {"NaN", "Infinity"})
+      if (line.find(token) != std::string::npos)
+        return lost(std::string("the answer is not JSON: it holds ") + token +
+                    ", which JSON has no number for (a node must be finite): " +
+                    quote_answer(line));
+    return lost("the answer is not JSON: " + quote_answer(line));
+  }
   if (!a.is_object()) return lost("the answer is not a JSON object: " + quote_answer(line));
   const auto frame = a.find("frame");
   if (frame == a.end() || !frame->is_number_integer() || frame->get<long long>() != in.frame)

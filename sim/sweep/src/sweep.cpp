@@ -170,6 +170,8 @@ void SweepSpec::validate() const {
   for (const TrackerMode m : modes)
     if (!seen.insert(m).second)
       throw std::invalid_argument("sweep: mode " + std::string(to_string(m)) + " given twice");
+  if (modes.empty() && !scene_mode && external.empty())
+    throw std::invalid_argument("sweep: no tracker to compare (no mode, no external tracker)");
   std::set<std::string> names;
   for (const TrackerMode m : modes) names.emplace(to_string(m));
   for (const ExternalTrackerSpec& e : external)
@@ -251,6 +253,7 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
   EpisodeOptions o;
   o.frames = spec.frames;
   o.modes = spec.modes;
+  o.scene_mode = spec.scene_mode;
   o.external = spec.external;
   o.cancel = cancel;
   o.threads = threads;
@@ -315,6 +318,8 @@ nlohmann::json manifest_json(const SweepSpec& spec) {
   j["set"] = spec.set;
   j["modes"] = nlohmann::json::array();
   for (const TrackerMode m : spec.modes) j["modes"].push_back(std::string(to_string(m)));
+  // Written only when false (external trackers alone), so other manifests read as before.
+  if (!spec.scene_mode) j["scene_mode"] = false;
   // Names and commands, to check that every shard compares the same trackers; a shard
   // starts the ones its own command line gives, never these.
   if (!spec.external.empty()) {
@@ -342,7 +347,7 @@ void write_manifest(const fs::path& dir, const SweepSpec& spec) {
     const auto at = [](const nlohmann::json& j, const char* field) {
       return j.contains(field) ? j.at(field) : nlohmann::json(nullptr);
     };
-    for (const char* field : {"scene", "axes", "set", "modes", "external", "frames"}) {
+    for (const char* field : {"scene", "axes", "set", "modes", "scene_mode", "external", "frames"}) {
       if (at(got, field) != at(want, field))
         throw io::InputError(path.string() + " describes another sweep: " + field + " is " +
                              at(got, field).dump() + ", this run has " + at(want, field).dump() +
@@ -369,6 +374,7 @@ SweepSpec read_manifest(const fs::path& dir) {
                         a.at("values").get<std::vector<std::string>>()});
     s.set = j.at("set").get<std::vector<std::string>>();
     for (const auto& m : j.at("modes")) s.modes.push_back(parse_mode(m.get<std::string>()));
+    s.scene_mode = j.value("scene_mode", true);
     if (j.contains("external"))
       for (const auto& e : j.at("external"))
         s.external.push_back({e.at("name").get<std::string>(), e.at("command").get<std::string>()});

@@ -21,6 +21,9 @@ struct EpisodeOptions {
   /// Tracker modes to compare on the same frames; empty: the scene's own mode. Each runs
   /// with the scene's tracker settings and only the mode changed.
   std::vector<TrackerMode> modes;
+  /// With no modes: the scene's own mode runs (false: none, only `external`; a --compare
+  /// that names external trackers alone).
+  bool scene_mode = true;
   /// Trackers outside linksight (issue 18), compared after the modes, in this order: each
   /// started once per episode (a process, docs/protocol.md) with the scene's `external`
   /// settings. Names must differ from each other and from the modes'.

@@ -38,6 +38,7 @@ struct SweepSpec {
   std::vector<SweepAxis> axes;     ///< first axis slowest: cell index is row-major
   std::vector<std::string> set;    ///< overrides applied to every cell, before the axes
   std::vector<TrackerMode> modes;  ///< compared on each cell's frames; empty: the scene's mode
+  bool scene_mode = true;  ///< as EpisodeOptions::scene_mode (false: external trackers only)
   /// Trackers outside linksight, after the modes (the command line's --tracker; the
   /// manifest records them to check that shards agree, and never starts one).
   std::vector<ExternalTrackerSpec> external;
@@ -48,7 +49,7 @@ struct SweepSpec {
   [[nodiscard]] std::size_t cells() const;
   /// Rows per cell: one per compared tracker (mode or external).
   [[nodiscard]] std::size_t modes_per_cell() const {
-    return (modes.empty() ? 1 : modes.size()) + external.size();
+    return (modes.empty() && scene_mode ? 1 : modes.size()) + external.size();
   }
 };
 
