@@ -193,6 +193,17 @@ std::size_t SweepSpec::cells() const {
 }
 
 namespace {
+// Cell `index`'s value of each axis (row-major: the last axis varies fastest).
+std::vector<std::string> cell_values(const SweepSpec& spec, std::size_t index) {
+  std::vector<std::string> values(spec.axes.size());
+  std::size_t rest = index;
+  for (std::size_t k = spec.axes.size(); k-- > 0;) {
+    values[k] = spec.axes[k].values[rest % spec.axes[k].values.size()];
+    rest /= spec.axes[k].values.size();
+  }
+  return values;
+}
+
 // The cell and its loaded scene (seed set to the cell's): run_cell needs both, and a scene
 // file is parsed once per cell.
 std::pair<SweepCell, Scene> load_cell(const SweepSpec& spec, std::size_t index) {
@@ -203,12 +214,7 @@ std::pair<SweepCell, Scene> load_cell(const SweepSpec& spec, std::size_t index) 
   c.index = index;
   c.scene = spec.scene;
   c.overrides = spec.set;
-  c.values.resize(spec.axes.size());
-  std::size_t rest = index;
-  for (std::size_t k = spec.axes.size(); k-- > 0;) {  // the last axis varies fastest
-    c.values[k] = spec.axes[k].values[rest % spec.axes[k].values.size()];
-    rest /= spec.axes[k].values.size();
-  }
+  c.values = cell_values(spec, index);
   std::string key;
   bool seed_axis = false;
   for (std::size_t k = 0; k < spec.axes.size(); ++k) {
@@ -429,6 +435,50 @@ void write_shard(const fs::path& dir, const SweepSpec& spec, int shard, int coun
   });
 }
 
+namespace {
+// A shard row belongs to this sweep: its cell is in the grid, its axis values are that
+// cell's, its tracker is one the manifest compares and, with a fixed --frames, it ran
+// that many frames. A shard file copied in from another sweep with the same columns (other
+// seeds, another --frames) is refused here, not merged (issue 19, F3). Throws InputError
+// naming the file, the line and the field.
+void check_shard_row(const SweepSpec& spec, const std::vector<std::string>& header,
+                     const std::vector<std::string>& row, const fs::path& path, int line) {
+  const std::string at = path.string() + ":" + std::to_string(line) + ": ";
+  const std::size_t cell = parse_index(row[0], path);
+  if (cell >= spec.cells())
+    throw io::InputError(at + "cell " + row[0] + " is beyond the grid's " +
+                         std::to_string(spec.cells()) + " cells");
+  const std::vector<std::string> values = cell_values(spec, cell);
+  for (std::size_t k = 0; k < values.size(); ++k)
+    if (row[2 + k] != values[k])
+      throw io::InputError(at + "cell " + row[0] + "'s " + header[2 + k] + " is '" +
+                           row[2 + k] + "', this sweep's grid has '" + values[k] +
+                           "' (a shard of another sweep?)");
+  bool known = spec.modes.empty() && spec.scene_mode;  // the scene's own mode: any mode
+  if (known) {
+    try {
+      (void)parse_mode(row[1]);
+    } catch (const std::invalid_argument&) {
+      known = false;
+    }
+  }
+  for (const TrackerMode m : spec.modes) known = known || row[1] == to_string(m);
+  for (const ExternalTrackerSpec& e : spec.external) known = known || row[1] == e.name;
+  if (!known)
+    throw io::InputError(at + "tracker '" + row[1] + "' is not one this sweep compares " +
+                         "(a shard of another sweep?)");
+  if (spec.frames > 0) {
+    const auto f = std::find(header.begin(), header.end(), "frames");
+    if (f != header.end() &&
+        row[static_cast<std::size_t>(f - header.begin())] != std::to_string(spec.frames))
+      throw io::InputError(at + "cell " + row[0] + " ran " +
+                           row[static_cast<std::size_t>(f - header.begin())] +
+                           " frames, this sweep runs " + std::to_string(spec.frames) +
+                           " (a shard of another sweep?)");
+  }
+}
+}  // namespace
+
 bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int count) {
   const fs::path path = dir / shard_file_name(shard, count);
   if (!fs::exists(path) || fs::exists(failed_file(path))) return false;
@@ -436,7 +486,10 @@ bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int c
     const io::CsvTable f = io::read_csv(path);
     if (f.header != shard_columns(spec)) return false;
     std::multiset<std::size_t> have;
-    for (const auto& row : f.rows) have.insert(parse_index(row[0], path));
+    for (std::size_t i = 0; i < f.rows.size(); ++i) {
+      check_shard_row(spec, f.header, f.rows[i], path, f.lines[i]);
+      have.insert(parse_index(f.rows[i][0], path));
+    }
     std::multiset<std::size_t> want;
     for (const std::size_t c : shard_cells(spec, shard, count))
       for (std::size_t k = 0; k < spec.modes_per_cell(); ++k) want.insert(c);
@@ -462,12 +515,9 @@ MergeResult merge_sweep(const fs::path& dir) {
     if (f.header != header)
       throw io::InputError(path.string() + ": its columns differ from " +
                            (dir / kManifest).string() + "'s sweep");
-    for (const auto& row : f.rows) {
-      const std::size_t cell = parse_index(row[0], path);
-      if (cell >= spec.cells())
-        throw io::InputError(path.string() + ": cell " + row[0] + " is beyond the grid's " +
-                             std::to_string(spec.cells()) + " cells");
-      by_cell[cell].push_back(row);
+    for (std::size_t i = 0; i < f.rows.size(); ++i) {
+      check_shard_row(spec, header, f.rows[i], path, f.lines[i]);
+      by_cell[parse_index(f.rows[i][0], path)].push_back(f.rows[i]);
     }
     ++result.shard_files;
     if (fs::exists(failed_file(path))) {

@@ -176,6 +176,42 @@ TEST_F(Sweep, CompleteShardsAreRecognizedAndOthersAreNot) {
   EXPECT_NE(e.find("describes another sweep: frames is 2, this run has 3"), std::string::npos) << e;
 }
 
+// Issue 19, F3: a shard file from another sweep with the same columns (other seeds, another
+// --frames, another mode) copied into this sweep's directory is refused by merge, naming
+// the file, line and field, and is not "complete" to a re-run (which then redoes it).
+TEST_F(Sweep, MergeRefusesAShardOfAnotherSweep) {
+  SweepSpec spec = tiny();
+  spec.axes = {parse_axis("seed=1,2")};
+  const auto foreign = [&](const SweepSpec& other, int line, const std::string& says) {
+    const fs::path mine = dir / "mine", theirs = dir / "theirs";
+    fs::remove_all(mine);
+    fs::remove_all(theirs);
+    run_shard(mine, spec, 0, 2);
+    run_shard(theirs, other, 1, 2);
+    fs::copy_file(theirs / shard_file_name(1, 2), mine / shard_file_name(1, 2));
+    const std::string e = test::error_of([&] { (void)merge_sweep(mine); });
+    EXPECT_NE(e.find((mine / shard_file_name(1, 2)).string() + ":" + std::to_string(line) + ": " +
+                     says),
+              std::string::npos)
+        << e;
+    EXPECT_FALSE(fs::exists(mine / "cells.csv")) << says;
+    EXPECT_FALSE(shard_complete(mine, spec, 1, 2)) << says;
+  };
+  SweepSpec seeds = spec;
+  seeds.axes = {parse_axis("seed=5,6")};
+  foreign(seeds, 2, "cell 1's seed is '6', this sweep's grid has '2' (a shard of another sweep?)");
+  SweepSpec frames = spec;
+  frames.frames = 3;
+  foreign(frames, 2, "cell 1 ran 3 frames, this sweep runs 2 (a shard of another sweep?)");
+  SweepSpec modes = spec;
+  modes.modes = {parse_mode("paper"), parse_mode("accelerated-som")};
+  foreign(modes, 3, "tracker 'accelerated-som' is not one this sweep compares");
+  // The sweep's own shard merges.
+  run_shard(dir / "mine", spec, 1, 2);
+  EXPECT_TRUE(shard_complete(dir / "mine", spec, 1, 2));
+  EXPECT_NO_THROW((void)merge_sweep(dir / "mine"));
+}
+
 TEST_F(Sweep, BadSceneKeysInACellAreNamed) {
   SweepSpec spec = tiny();
   spec.axes = {parse_axis("noise.scael=1,2")};
