@@ -18,6 +18,7 @@ struct SimulateOptions {
   std::string scene;
   int frames = 0;  // 0: the scene's duration
   std::string out = "out/simulate";
+  bool force = false;
   bool quiet = false;
 };
 
@@ -26,6 +27,8 @@ int run_simulate(const SimulateOptions& o) {
   if (o.frames < 0)
     throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 0");
   const int frames = sim::camera_frames(scene, o.frames);
+  // The directory appears whole or not at all (a kill or a full disk leaves no part of it).
+  io::StagedDir out(o.out, o.force);
   std::unique_ptr<sim::World> world = sim::make_world(scene);
   std::ostringstream truth;
   sim::write_truth_header(truth);
@@ -37,11 +40,8 @@ int run_simulate(const SimulateOptions& o) {
     contact_frames += t.contact ? 1 : 0;
     sim::write_truth_rows(truth, f, t);
   }
-  std::error_code ec;
-  fs::create_directories(o.out, ec);
-  if (ec) throw io::InputError(o.out + ": cannot create output directory: " + ec.message());
-  io::write_file_atomic(fs::path(o.out) / "truth.csv",
-                        [&](std::ostream& out) { out << truth.str(); });
+  io::write_file_atomic(out.path() / "truth.csv", [&](std::ostream& os) { os << truth.str(); });
+  out.commit();
   if (!o.quiet) {
     std::cout << "simulated " << frames << " frames of " << o.scene << " (" << world->time()
               << " s, contact in " << contact_frames << " frames); wrote " << o.out
@@ -59,6 +59,7 @@ Runner add_simulate(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--out", o->out, "output directory (truth.csv: frame,t_s,node,x_m,y_m,z_m in W)")
       ->capture_default_str();
+  app.add_flag("--force", o->force, "replace an existing output directory");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
   return [o] { return run_simulate(*o); };
 }

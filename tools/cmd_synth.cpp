@@ -24,19 +24,29 @@ struct SynthOptions {
   double noise = 0.001;
   int samples_per_ball = 1200;
   std::uint64_t seed = 1;
+  bool force = false;
   bool quiet = false;
 };
 
+// Beyond these a value is a typo: a frame of 11 x 100k samples is 1.1M points (13 MB),
+// far above any depth camera's; a sequence of 100k frames is an hour at 30 fps.
+constexpr int kMaxSamplesPerBall = 100'000;
+constexpr int kMaxSynthFrames = 100'000;
+
 int run_synth(const SynthOptions& o) {
-  if (o.frames < 1)
-    throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be >= 1");
+  if (o.frames < 1 || o.frames > kMaxSynthFrames)
+    throw std::invalid_argument("--frames = " + std::to_string(o.frames) + ": must be in [1, " +
+                                std::to_string(kMaxSynthFrames) + "]");
   if (!(o.fps > 0)) throw std::invalid_argument("--fps: must be > 0");
+  if (o.samples_per_ball < 1 || o.samples_per_ball > kMaxSamplesPerBall)
+    throw std::invalid_argument("--samples-per-ball = " + std::to_string(o.samples_per_ball) +
+                                ": must be in [1, " + std::to_string(kMaxSamplesPerBall) + "]");
+  if (!(o.noise >= 0 && o.noise <= 1))
+    throw std::invalid_argument("--noise: must be in [0, 1] m");
   const ComponentGeometry g;
-  std::error_code ec;
-  fs::create_directories(o.out, ec);
-  if (ec) throw io::InputError(o.out + ": cannot create output directory: " + ec.message());
-  // Frames are written first (each atomically), truth.csv last: its presence marks a
-  // complete sequence.
+  // The directory appears whole or not at all: a kill or a full disk leaves no frames of a
+  // sequence under the final name, and a re-run with fewer frames no stale ones.
+  io::StagedDir out(o.out, o.force);
   std::ostringstream truth;
   truth << "frame,node,x_m,y_m,z_m\n" << std::fixed << std::setprecision(6);
   for (int f = 0; f < o.frames; ++f) {
@@ -48,14 +58,14 @@ int run_synth(const SynthOptions& o) {
     const Cloud cloud = sim::sample_visible_surface(nodes, g, s);
     std::ostringstream name;
     name << "frame_" << std::setw(4) << std::setfill('0') << f << ".ply";
-    io::write_ply(fs::path(o.out) / name.str(), cloud);
+    io::write_ply(out.path() / name.str(), cloud);
     for (std::size_t j = 0; j < nodes.size(); ++j) {
       truth << f << ',' << j << ',' << nodes[j].x() << ',' << nodes[j].y() << ',' << nodes[j].z()
             << '\n';
     }
   }
-  io::write_file_atomic(fs::path(o.out) / "truth.csv",
-                        [&](std::ostream& out) { out << truth.str(); });
+  io::write_file_atomic(out.path() / "truth.csv", [&](std::ostream& os) { os << truth.str(); });
+  out.commit();
   if (!o.quiet) {
     std::cout << "wrote " << o.frames << " frames and truth.csv to " << o.out << "\n";
   }
@@ -73,6 +83,7 @@ Runner add_synth(CLI::App& app) {
   app.add_option("--samples-per-ball", o->samples_per_ball, "surface samples drawn per ball")
       ->capture_default_str();
   app.add_option("--seed", o->seed, "seed")->capture_default_str();
+  app.add_flag("--force", o->force, "replace an existing output directory");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
   return [o] { return run_synth(*o); };
 }

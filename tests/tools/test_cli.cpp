@@ -1182,6 +1182,56 @@ TEST_F(Cli, RunBadInputLeavesNothing) {
   expect_existing_out_needs_force("run " + scene + " --frames 1 --no-figures", "summary.json");
 }
 
+// Issue 19, F6, F7 and the minor findings: synth and simulate write their directory
+// whole or not at all (an existing one needs --force; a re-run with fewer frames leaves no
+// stale frame; a kill leaves nothing under the final name, and the next run cleans what it
+// staged); synth's sizes are bounded before anything is drawn; --out naming a file is
+// refused, and --force does not delete it.
+TEST_F(Cli, SynthAndSimulateWriteTheirDirectoryWhole) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  expect_existing_out_needs_force("synth --quiet --frames 2", "frame_0001.ply");
+  fs::remove_all(out);
+  expect_existing_out_needs_force("simulate --quiet --scene " + scene + " --frames 2", "truth.csv");
+  fs::remove_all(out);
+  ASSERT_EQ(run("synth --quiet --frames 5 --out " + out.string(), dir).code, 0);
+  ASSERT_EQ(run("synth --quiet --frames 2 --force --out " + out.string(), dir).code, 0);
+  EXPECT_TRUE(fs::exists(out / "frame_0001.ply"));
+  EXPECT_FALSE(fs::exists(out / "frame_0002.ply")) << "no stale frame of the longer run";
+  fs::remove_all(out);
+  // Bounded: refused at once, naming the flag and the limit.
+  expect_refused("synth --samples-per-ball 2000000000", "--samples-per-ball = 2000000000: must be in [1, 100000]");
+  expect_refused("synth --frames 1000000000", "--frames = 1000000000: must be in [1, 100000]");
+  expect_refused("synth --noise -1", "--noise: must be in [0, 1] m");
+  // --out naming a file: refused with or without --force, the file kept.
+  std::ofstream(dir / "afile") << "mine";
+  for (const std::string force : {"", " --force"}) {
+    for (const std::string& cmd :
+         std::vector<std::string>{"synth --frames 1", "simulate --scene " + scene + " --frames 1",
+                                  "run " + scene + " --frames 1 --no-figures"}) {
+      const CliRun r = run(cmd + force + " --out " + (dir / "afile").string(), dir);
+      EXPECT_EQ(r.code, 2) << cmd << force;
+      EXPECT_NE(r.err.find("afile: exists and is not a directory"), std::string::npos) << r.err;
+      EXPECT_TRUE(fs::is_regular_file(dir / "afile")) << cmd << force;
+    }
+  }
+  // SIGKILL in the middle of a long synth: nothing under the final name; the staging
+  // directory it leaves is cleaned by the next run into the same --out.
+  const std::string cmd = "timeout -s KILL 1 " + std::string(LINKSIGHT_EXE) +
+                          " synth --quiet --frames 100000 --out " + out.string();
+  const int killed = std::system(cmd.c_str());
+  EXPECT_NE(WEXITSTATUS(killed), 0);
+  EXPECT_FALSE(fs::exists(out)) << "a killed synth leaves no output directory";
+  std::size_t staged = 0;
+  for (const auto& e : fs::directory_iterator(dir))
+    staged += e.path().filename().string().rfind("result.partial-", 0) == 0;
+  EXPECT_EQ(staged, 1u) << "what the kill left (it had frames in it)";
+  ASSERT_EQ(run("synth --quiet --frames 1 --out " + out.string(), dir).code, 0);
+  staged = 0;
+  for (const auto& e : fs::directory_iterator(dir))
+    staged += e.path().filename().string().rfind("result.partial-", 0) == 0;
+  EXPECT_EQ(staged, 0u) << "cleaned by the next run into the same --out";
+}
+
 // Ctrl-C: the frames done so far are written whole, the summary says so, exit 130.
 TEST_F(Cli, RunInterruptedKeepsCompletedFiles) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml";

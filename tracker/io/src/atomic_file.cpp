@@ -1,7 +1,12 @@
 #include "linksight/io/atomic_file.hpp"
 
+#include <signal.h>
 #include <unistd.h>
+
 #include <atomic>
+#include <cerrno>
+#include <charconv>
+#include <string_view>
 #include <fstream>
 #include <system_error>
 
@@ -67,13 +72,49 @@ void write_file_atomic(const fs::path& path, const std::function<void(std::ostre
   staged.commit();
 }
 
+namespace {
+// `name` is `stem` + `tag` + a process id that is no longer running: what a run killed
+// before it could clean up (SIGKILL, a power cut) left beside its output directory.
+bool left_by_a_dead_run(const std::string& name, const std::string& stem, std::string_view tag) {
+  const std::string head = stem + std::string(tag);
+  if (name.size() <= head.size() || name.compare(0, head.size(), head) != 0) return false;
+  const char* first = name.data() + head.size();
+  const char* last = name.data() + name.size();
+  long pid = 0;
+  const auto r = std::from_chars(first, last, pid);
+  if (r.ec != std::errc() || r.ptr != last || pid <= 0 || pid == ::getpid()) return false;
+  if (::kill(static_cast<pid_t>(pid), 0) != 0) return errno == ESRCH;
+  // A killed process whose parent is gone too may linger as a zombie until init reaps it.
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  std::getline(stat, line);
+  const std::size_t paren = line.rfind(')');
+  return paren != std::string::npos && paren + 2 < line.size() && line[paren + 2] == 'Z';
+}
+}  // namespace
+
 StagedDir::StagedDir(fs::path dir, bool force) : dir_(std::move(dir)) {
   std::error_code ec;
-  if (fs::exists(dir_, ec) && !force)
+  const fs::file_status st = fs::symlink_status(dir_, ec);
+  if (fs::exists(st) && !fs::is_directory(st))
+    throw InputError(dir_.string() + ": exists and is not a directory (an output directory is " +
+                     "replaced with --force, never a file)");
+  if (fs::exists(st) && !force)
     throw InputError(dir_.string() + ": output directory exists (use --force to replace it)");
   const fs::path parent = dir_.has_parent_path() ? dir_.parent_path() : fs::path(".");
   fs::create_directories(parent, ec);
   if (ec) throw InputError(parent.string() + ": cannot create directory: " + ec.message());
+  // Staging and replaced directories of runs into the same DIR that were killed: gone now
+  // (a live run's are its own).
+  const std::string stem = dir_.filename().string();
+  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (left_by_a_dead_run(name, stem, ".partial-") || left_by_a_dead_run(name, stem, ".old-")) {
+      std::error_code rm;
+      fs::remove_all(it->path(), rm);
+    }
+  }
+  ec.clear();
   staging_ = parent / (dir_.filename().string() + ".partial-" + std::to_string(::getpid()));
   fs::remove_all(staging_, ec);
   fs::create_directories(staging_, ec);
