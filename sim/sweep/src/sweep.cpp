@@ -227,7 +227,23 @@ std::pair<SweepCell, Scene> load_cell(const SweepSpec& spec, std::size_t index) 
       seed_axis = seed_axis || name == "seed";
     }
   }
-  Scene scene = load_scene(c.scene, c.overrides);
+  Scene scene;
+  try {
+    scene = load_scene(c.scene, c.overrides);
+  } catch (const io::InputError& e) {
+    // The scene names an override as "--set K=V"; an axis's value came from --axis (or
+    // the grid file), so say that.
+    std::string msg = e.what();
+    for (std::size_t k = 0; k < spec.axes.size(); ++k) {
+      const std::string as_set = "--set " + spec.axes[k].key + "=" + c.values[k] + ":";
+      const std::size_t at = msg.find(as_set);
+      if (spec.axes[k].key != "scene" && at != std::string::npos &&
+          std::find(spec.set.begin(), spec.set.end(), spec.axes[k].key + "=" + c.values[k]) ==
+              spec.set.end())
+        msg.replace(at, 5, "--axis");
+    }
+    throw io::InputError(msg);
+  }
   c.seed = seed_axis ? scene.seed : derive_seed(scene.seed, std::string_view(key));
   scene.seed = c.seed;
   return {std::move(c), std::move(scene)};

@@ -6,6 +6,13 @@ namespace linksight::sim::yaml {
 
 YAML::Node load_file(const std::filesystem::path& path, const std::string& what) {
   const std::string file = path.string();
+  // yaml-cpp holds about 110 bytes per byte of input: a file past the limit is refused
+  // before it is parsed, not after gigabytes (issue 19, F5).
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
+  if (!ec && bytes > kMaxFileBytes)
+    throw io::InputError(file + ": " + std::to_string(bytes) + " bytes, more than a " + what +
+                         " may have (" + std::to_string(kMaxFileBytes) + ")");
   try {
     return YAML::LoadFile(file);
   } catch (const YAML::BadFile&) {
@@ -57,9 +64,12 @@ std::string Reader::key_text(const YAML::Node& key, const std::string& where) co
 void Reader::only(const YAML::Node& map, const std::string& where,
                   const std::set<std::string>& keys) const {
   if (!map.IsMap()) fail(map, where.empty() ? "(top level)" : where, "expected a mapping");
+  std::set<std::string> seen;
   for (const auto& kv : map) {
     const std::string k = key_text(kv.first, where);
     if (!keys.count(k)) fail(kv.first, join(where, k), "unknown key");
+    // yaml-cpp keeps both and a lookup finds the first: the second would be ignored.
+    if (!seen.insert(k).second) fail(kv.first, join(where, k), "given twice");
   }
 }
 

@@ -8,6 +8,7 @@
 
 #include "linksight/io/error.hpp"
 #include "linksight/sim/scene.hpp"
+#include "linksight/sim/yaml.hpp"
 #include "test_support.hpp"
 
 namespace linksight::sim {
@@ -113,6 +114,14 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
   EXPECT_NE(error_of("[1, 2]: 3\n").find(":1: (top level): a key must be a plain name"),
             std::string::npos);
   EXPECT_EQ(error_of("duration_s: 1\n"), "no error");
+  // Issue 19: a key given twice (yaml-cpp keeps both; the first would win, silently).
+  has("seed: 1\nduration_s: 1\nseed: 2\n", ":3: seed: given twice");
+  has("chain:\n  count: 11\n  count: 5\n", ":3: chain.count: given twice");
+  // F5: a file past the size limit is refused before it is parsed (10^6 waypoints took
+  // 2 GB and 20 s to refuse).
+  std::string big = "base:\n  waypoints:\n";
+  while (big.size() <= yaml::kMaxFileBytes) big += "    - {t_s: 1, position_m: [0, 0, 0]}\n";
+  has(big, "bytes, more than a scene may have (1048576)");
   try {
     (void)load_scene(dir / "missing.yaml");
     FAIL();

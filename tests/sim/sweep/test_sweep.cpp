@@ -216,7 +216,7 @@ TEST_F(Sweep, BadSceneKeysInACellAreNamed) {
   SweepSpec spec = tiny();
   spec.axes = {parse_axis("noise.scael=1,2")};
   const std::string e = test::error_of([&] { (void)run_cell(spec, 0, 0); });
-  EXPECT_NE(e.find("--set noise.scael=1: noise.scael: unknown key"), std::string::npos) << e;
+  EXPECT_NE(e.find("--axis noise.scael=1: noise.scael: unknown key"), std::string::npos) << e;
 }
 
 }  // namespace

@@ -55,6 +55,9 @@ TEST_F(Frames, ErrorsNameTheInput) {
   EXPECT_EQ(message(dir.string()), dir.string() + ": directory has no frames (*.ply, *.png)");
   EXPECT_EQ(message((dir / "none").string()),
             (dir / "none").string() + ": no such file or directory");
+  // Issue 19: a device is there, but not a frame ("no such file" was wrong).
+  EXPECT_EQ(message("/dev/zero"),
+            "/dev/zero: not a regular file or directory (a device, pipe or socket)");
   EXPECT_EQ(message((dir / "*.ply").string()),
             (dir / "*.ply").string() + ": pattern matches no file");
   touch("notes.txt");

@@ -70,6 +70,8 @@ std::vector<fs::path> list_frames(const std::string& input) {
     if (out.empty()) throw InputError(input + ": directory has no frames (*.ply, *.png)");
   } else if (fs::is_regular_file(input, ec)) {
     out.emplace_back(input);
+  } else if (fs::exists(input, ec)) {
+    throw InputError(input + ": not a regular file or directory (a device, pipe or socket)");
   } else {
     throw InputError(input + ": no such file or directory");
   }

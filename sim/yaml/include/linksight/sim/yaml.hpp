@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <limits>
 #include <ostream>
@@ -32,7 +33,13 @@ struct Override {
   std::string key, value;
 };
 
-/// Parses a YAML file. Throws io::InputError "<file>: cannot open <what>" or
+/// The largest scene or grid file [bytes]: the shipped scenes are 1-5 KB; a scene of 10,000
+/// waypoints fits. yaml-cpp holds about 110 bytes per input byte, so this bounds a parse at
+/// about 120 MB.
+inline constexpr std::uintmax_t kMaxFileBytes = 1u << 20;
+
+/// Parses a YAML file. Throws io::InputError "<file>: cannot open <what>",
+/// "<file>: N bytes, more than a <what> may have (kMaxFileBytes)" or
 /// "<file>:<line>: malformed YAML: <why>".
 [[nodiscard]] YAML::Node load_file(const std::filesystem::path& file, const std::string& what);
 
