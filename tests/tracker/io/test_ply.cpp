@@ -171,6 +171,20 @@ TEST_F(Ply, BadNumber) {
 TEST_F(Ply, NoEndHeader) {
   expect_error("h.ply", "ply\nformat ascii 1.0\nelement vertex 1\n", "truncated header");
 }
+// Issue 19: a line is bounded (a 200 MB comment line cost 780 MB to refuse); a line just
+// under the bound still reads, the last line may lack its '\n'.
+TEST_F(Ply, OverlongLinesAreRefused) {
+  expect_error("c.ply", "ply\nformat ascii 1.0\ncomment " + std::string(1 << 17, 'x') + "\n",
+               "a line of 65536 bytes or more");
+  expect_error("v.ply", kHeader3 + "1 2 3\n" + std::string(1 << 17, '4') + " 5 6\n",
+               "a line of 65536 bytes or more");
+  const Cloud c = read_ply(write("ok.ply", "ply\nformat ascii 1.0\ncomment " +
+                                              std::string(60000, 'x') +
+                                              "\nelement vertex 1\nproperty float x\nproperty "
+                                              "float y\nproperty float z\nend_header\n1 2 3"));
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_EQ(c.xyz[2], 3.f);
+}
 TEST_F(Ply, MissingFile) {
   const std::string e = error_of(dir / "nope.ply");
   EXPECT_NE(e.find("nope.ply: cannot open"), std::string::npos);
