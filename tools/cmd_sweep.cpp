@@ -133,7 +133,7 @@ int run_sweep(const SweepOptions& o) {
     for (const auto& e : fs::directory_iterator(dir)) {
       const std::string name = e.path().filename().string();
       if (name == "sweep.json" || name.rfind("shard_", 0) == 0 || name.rfind("cells", 0) == 0)
-        fs::remove(e.path());
+        fs::remove_all(e.path());  // shard_I_of_N.cells/ too
     }
   }
   sim::write_manifest(dir, spec);
@@ -148,9 +148,18 @@ int run_sweep(const SweepOptions& o) {
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<sim::SweepRow> rows;
     std::vector<sim::SweepFailure> failures;
+    std::size_t resumed = 0;
     for (std::size_t k = 0; k < cells.size() && !interrupted(); ++k) {
       try {
-        for (sim::SweepRow& r : sim::run_cell(spec, cells[k], o.threads, &interrupted())) {
+        // A cell an earlier run of this shard completed (it was killed or stopped later).
+        std::optional<std::vector<sim::SweepRow>> done =
+            sim::read_cell_record(dir, spec, shard, count, cells[k]);
+        resumed += done.has_value();
+        if (!done) {
+          done = sim::run_cell(spec, cells[k], o.threads, &interrupted());
+          sim::write_cell_record(dir, spec, shard, count, cells[k], *done);
+        }
+        for (sim::SweepRow& r : *done) {
           if (!r.lost_note.empty()) {
             if (bar) std::cerr << "\n";
             std::cerr << "linksight: warning: cell " << cells[k] << ": " << r.lost_note << "\n";
@@ -175,10 +184,21 @@ int run_sweep(const SweepOptions& o) {
     guard.reset();
     if (stopped) {
       std::cerr << "linksight: interrupted; shard " << shard << "/" << count
-                << " not written (run again to redo it)\n";
+                << " not written; its completed cells are kept in "
+                << sim::cell_records_dir(dir, shard, count).string()
+                << " (run the same command again to resume)\n";
       return 130;
     }
     sim::write_shard(dir, spec, shard, count, rows, failures);
+    // The shard file holds every cell now; with failed cells the records stay, so that a
+    // re-run runs only those again.
+    if (failures.empty()) {
+      std::error_code ec;
+      fs::remove_all(sim::cell_records_dir(dir, shard, count), ec);
+    }
+    if (!o.quiet && resumed > 0)
+      std::cout << "shard " << shard << "/" << count << ": " << resumed
+                << " cells resumed from an earlier run\n";
     if (!o.quiet)
       std::cout << "shard " << shard << "/" << count << ": " << cells.size() << " cells -> "
                 << (dir / sim::shard_file_name(shard, count)).string() << "\n";

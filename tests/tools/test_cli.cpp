@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <fstream>
+#include <random>
 #include <functional>
 #include <map>
 #include <set>
@@ -1013,6 +1014,74 @@ TEST_F(Cli, ExternalTrackerAloneInRunAndSweep) {
                              "the answer is not JSON: 'hello, linksight')"),
             std::string::npos)
       << garbage.err;
+}
+
+// Issue 19, F8: a sweep shard killed (SIGKILL at seeded random instants, and Ctrl-C) keeps
+// the cells it completed and resumes from them when run again; no shard file is ever left
+// under its final name torn; the merged table is byte for byte the uninterrupted one.
+TEST_F(Cli, SweepKilledAtAnyInstantResumesToTheSameTable) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const std::string grid = "sweep --scene " + scene +
+                           " --axis noise.scale=0,1,2 --axis tracker.iterations=2,4 --frames 30"
+                           " --compare paper --no-figures --quiet --out ";
+  ASSERT_EQ(run(grid + (dir / "whole").string(), dir).code, 0);
+  const std::string want = slurp_text(dir / "whole" / "cells.csv");
+  const fs::path b = dir / "killed";
+  std::mt19937 rng(20261125);
+  // About 1.7 s for the whole sweep on a 2-core machine: the instants fall before, in and
+  // between its cells; a run that resumes needs less, so later kills may come too late.
+  std::uniform_real_distribution<double> instant(0.05, 1.0);
+  int kills = 0, resumed = 0, finished = 0;
+  // 20 instants; a run that finishes before its instant is checked and started afresh.
+  for (int attempt = 0; attempt < 20; ++attempt) {
+    const double at = instant(rng);
+    const std::string cmd = "timeout -s KILL " + std::to_string(at) + " " +
+                            std::string(LINKSIGHT_EXE) + " " + grid + b.string() +
+                            " >/dev/null 2>&1; echo $? > " + (dir / "rc").string();
+    (void)std::system(cmd.c_str());
+    const int rc = std::stoi(slurp_text(dir / "rc"));
+    // Whatever instant it died at: the shard file is whole or absent, every record whole.
+    if (fs::exists(b / "shard_0_of_1.csv")) {
+      EXPECT_EQ(lines_of(b / "shard_0_of_1.csv").size(), 7u) << "a torn shard file at " << at;
+    }
+    if (fs::exists(b / "shard_0_of_1.cells")) {
+      for (const auto& e : fs::directory_iterator(b / "shard_0_of_1.cells")) {
+        if (e.path().extension() != ".csv") continue;  // a temp file being written
+        EXPECT_EQ(lines_of(e.path()).size(), 2u) << "a torn record " << e.path();
+        resumed += rc != 0;
+      }
+    }
+    if (rc == 0) {
+      ++finished;
+      EXPECT_EQ(slurp_text(b / "cells.csv"), want) << "after kills, byte for byte the same table";
+      EXPECT_FALSE(fs::exists(b / "shard_0_of_1.cells")) << "records gone with the shard file";
+      fs::remove_all(b);
+    } else {
+      ++kills;
+    }
+  }
+  EXPECT_GE(kills, 10) << "the kills must land while cells run";
+  EXPECT_GE(resumed, 1) << "some kill left completed cells to resume from";
+  // The last kill's work, resumed to the end.
+  ASSERT_EQ(run(grid + b.string(), dir).code, 0);
+  EXPECT_EQ(slurp_text(b / "cells.csv"), want) << "resumed, byte for byte the same table";
+  EXPECT_FALSE(fs::exists(b / "shard_0_of_1.cells")) << "records gone once the shard is written";
+  // Ctrl-C: exit 130, the completed cells kept and named; the next run resumes them.
+  const fs::path c = dir / "interrupted";
+  const std::string interrupt = "timeout --preserve-status -s INT 1 " + std::string(LINKSIGHT_EXE) + " " + grid +
+                                c.string() + " >/dev/null 2>" + (dir / "int.err").string();
+  const int si = std::system(interrupt.c_str());
+  ASSERT_EQ(WEXITSTATUS(si), 130) << slurp_text(dir / "int.err");
+  EXPECT_NE(slurp_text(dir / "int.err").find("its completed cells are kept in"), std::string::npos)
+      << slurp_text(dir / "int.err");
+  EXPECT_FALSE(fs::exists(c / "shard_0_of_1.csv"));
+  const std::string again = std::string(LINKSIGHT_EXE) + " " + grid.substr(0, grid.find(" --quiet")) +
+                            " --out " + c.string() + " >" + (dir / "again.out").string() + " 2>&1";
+  EXPECT_EQ(WEXITSTATUS(std::system(again.c_str())), 0) << slurp_text(dir / "again.out");
+  EXPECT_NE(slurp_text(dir / "again.out").find("cells resumed from an earlier run"),
+            std::string::npos)
+      << slurp_text(dir / "again.out");
+  EXPECT_EQ(slurp_text(c / "cells.csv"), want);
 }
 
 // --tracker and --compare: names are checked, and a tracker --compare leaves out is refused.

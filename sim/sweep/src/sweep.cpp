@@ -515,6 +515,56 @@ bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int c
   }
 }
 
+fs::path cell_records_dir(const fs::path& dir, int shard, int count) {
+  std::string name = shard_file_name(shard, count);
+  name.replace(name.size() - 4, 4, ".cells");
+  return dir / name;
+}
+
+void write_cell_record(const fs::path& dir, const SweepSpec& spec, int shard, int count,
+                       std::size_t cell, const std::vector<SweepRow>& rows) {
+  const fs::path records = cell_records_dir(dir, shard, count);
+  std::error_code ec;
+  fs::create_directories(records, ec);
+  if (ec) throw io::InputError(records.string() + ": cannot create: " + ec.message());
+  io::write_file_atomic(records / (std::to_string(cell) + ".csv"), [&](std::ostream& os) {
+    os << csv_line(shard_columns(spec));
+    for (const SweepRow& r : rows) {
+      std::vector<std::string> f = r.values;
+      f.insert(f.end(), r.timing.begin() + 2, r.timing.end());
+      os << csv_line(f);
+    }
+  });
+}
+
+std::optional<std::vector<SweepRow>> read_cell_record(const fs::path& dir, const SweepSpec& spec,
+                                                      int shard, int count, std::size_t cell) {
+  const fs::path path = cell_records_dir(dir, shard, count) / (std::to_string(cell) + ".csv");
+  if (!fs::exists(path)) return std::nullopt;
+  try {
+    const io::CsvTable f = io::read_csv(path);
+    if (f.header != shard_columns(spec) || f.rows.size() != spec.modes_per_cell())
+      return std::nullopt;
+    const std::size_t n_det = sweep_columns(spec).size();
+    std::vector<SweepRow> rows;
+    for (std::size_t i = 0; i < f.rows.size(); ++i) {
+      const std::vector<std::string>& row = f.rows[i];
+      check_shard_row(spec, f.header, row, path, f.lines[i]);
+      if (parse_index(row[0], path) != cell) return std::nullopt;
+      SweepRow r;
+      r.cell = cell;
+      r.mode = i;
+      r.values.assign(row.begin(), row.begin() + static_cast<long>(n_det));
+      r.timing = {row[0], row[1]};
+      r.timing.insert(r.timing.end(), row.begin() + static_cast<long>(n_det), row.end());
+      rows.push_back(std::move(r));
+    }
+    return rows;
+  } catch (const io::InputError&) {
+    return std::nullopt;  // torn or foreign: the cell runs again
+  }
+}
+
 MergeResult merge_sweep(const fs::path& dir) {
   const SweepSpec spec = read_manifest(dir);
   const std::vector<std::string> header = shard_columns(spec);

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -120,6 +121,20 @@ void write_shard(const std::filesystem::path& dir, const SweepSpec& spec, int sh
 /// Whether DIR/shard_I_of_N.csv exists with the right columns and exactly its cells.
 [[nodiscard]] bool shard_complete(const std::filesystem::path& dir, const SweepSpec& spec,
                                   int shard, int count);
+
+/// A shard's cells as they complete (issue 19, F8): DIR/shard_I_of_N.cells/CELL.csv, the
+/// cell's rows in the shard file's columns, written atomically as soon as the cell is
+/// done, so that a shard killed (Ctrl-C, SIGKILL, a node lost) resumes where it stopped.
+/// write_shard's caller removes them once the shard file is in place.
+[[nodiscard]] std::filesystem::path cell_records_dir(const std::filesystem::path& dir, int shard,
+                                                     int count);
+void write_cell_record(const std::filesystem::path& dir, const SweepSpec& spec, int shard,
+                       int count, std::size_t cell, const std::vector<SweepRow>& rows);
+/// The rows a completed cell's record holds (lost_note empty), or nothing when there is
+/// no record or it is not this sweep's whole cell (torn, foreign: run the cell again).
+[[nodiscard]] std::optional<std::vector<SweepRow>> read_cell_record(
+    const std::filesystem::path& dir, const SweepSpec& spec, int shard, int count,
+    std::size_t cell);
 
 struct MergeResult {
   std::size_t cells = 0, rows = 0, shard_files = 0;
