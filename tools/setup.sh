@@ -32,6 +32,7 @@ case "$what" in
          libgtest-dev       # tests
          libbenchmark-dev   # bench/
          python3-numpy      # tools/trackers/som.py, the external-tracker tests' reference client
+         clang              # the fuzz targets under libFuzzer (tools/fuzz.sh, ctest label fuzz)
          chromium           # the 3-D view's test: a real browser loads view.html headless
          slurm-wlm munge    # the slurm ctest: a real single-node Slurm (slurmctld, slurmd, sbatch) and munge
        )

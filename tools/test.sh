@@ -27,4 +27,17 @@ LINKSIGHT_BUILD_DIR="$root/build-asan" bash "$root/tools/setup.sh" \
   "-DCMAKE_CXX_FLAGS=-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1 \
 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  ctest --test-dir "$root/build-asan" -L unit -j "$jobs" --output-on-failure
+  ctest --test-dir "$root/build-asan" -L 'unit|fuzz' -j "$jobs" --output-on-failure
+
+echo "test: libFuzzer, a fixed count of inputs per target from its corpus (seed 1; clang)"
+# The readers that tracker/io and sim/external hold (the scene, grid, shard and mesh
+# targets need all of sim/ built with clang: their corpora replay under the sanitizer
+# build above; tools/fuzz.sh TARGET SECONDS runs any of them for longer).
+light=(ply depth_png intrinsics nodes_csv frames answer)
+cmake -S "$root" -B "$root/build-fuzz" -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DLINKSIGHT_FUZZ=ON -DLINKSIGHT_BUILD_BENCH=OFF \
+  "-DCMAKE_CXX_FLAGS=-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all" \
+  >/dev/null
+cmake --build "$root/build-fuzz" -j "$jobs" --target "${light[@]/#/linksight_fuzz_}"
+ctest --test-dir "$root/build-fuzz" -R "^fuzz\.($(IFS='|'; echo "${light[*]}"))\.run$" -j "$jobs" \
+  --output-on-failure

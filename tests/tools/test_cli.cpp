@@ -1301,6 +1301,57 @@ TEST_F(Cli, SynthAndSimulateWriteTheirDirectoryWhole) {
   EXPECT_EQ(staged, 0u) << "cleaned by the next run into the same --out";
 }
 
+// Issue 19, part 4: what a scene names is only read. A scene naming /etc/passwd (or a
+// path climbing out of its folder to it) as a mesh is refused at its key, nothing of the
+// file is echoed, and nothing is written; a scene never writes outside --out: after runs
+// of scenes full of ../ paths, the only new entry beside the scene is --out.
+TEST_F(Cli, ASceneOnlyReadsWhatItNamesAndWritesOnlyUnderOut) {
+  const fs::path box = dir / "box" / "scenes";
+  fs::create_directories(box);
+  const auto listing = [&] {
+    std::set<std::string> names;
+    for (const auto& e : fs::recursive_directory_iterator(dir / "box"))
+      names.insert(e.path().string());
+    return names;
+  };
+  std::string climb;
+  for (const auto& part : box) {
+    (void)part;
+    climb += "../";
+  }
+  for (const std::string& mesh : {std::string("/etc/passwd"), climb + "etc/passwd"}) {
+    std::ofstream(box / "evil.yaml")
+        << "duration_s: 0.1\noccluders:\n  - shape: mesh\n    mesh: " << mesh
+        << "\n    path: {waypoints: [{t_s: 0, position_m: [0, 0, 0.4]}]}\n";
+    const auto before = listing();
+    const CliRun r = run("run " + (box / "evil.yaml").string() + " --no-figures --out " +
+                             (box / "out").string(),
+                         dir);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find("evil.yaml:4: occluders[0].mesh: "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("passwd"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("root:"), std::string::npos) << "the file's content is not echoed";
+    EXPECT_EQ(listing(), before) << "nothing written";
+  }
+  // A valid scene whose meshes climb out of its folder and back: it runs, and the only new
+  // entry anywhere under the folder above it is --out.
+  std::ofstream(box / "climb.yaml")
+      << "duration_s: 0.1\noccluders:\n  - shape: mesh\n    mesh: ../scenes/"
+      << fs::relative(fs::path(LINKSIGHT_SCENE_DIR) / ".." / "meshes" / "hand.obj", box).string()
+      << "\n    path: {waypoints: [{t_s: 0, position_m: [0, 0, 0.4]}]}\n";
+  const auto before = listing();
+  const CliRun ok = run("run " + (box / "climb.yaml").string() + " --out " +
+                            (box / "out").string() + " --quiet",
+                        dir);
+  ASSERT_EQ(ok.code, 0) << ok.err;
+  std::set<std::string> added;
+  for (const std::string& n : listing())
+    if (!before.count(n)) added.insert(n);
+  for (const std::string& n : added)
+    EXPECT_EQ(n.rfind((box / "out").string(), 0), 0u) << n << " was written outside --out";
+  EXPECT_FALSE(added.empty());
+}
+
 // Ctrl-C: the frames done so far are written whole, the summary says so, exit 130.
 TEST_F(Cli, RunInterruptedKeepsCompletedFiles) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml";

@@ -399,27 +399,28 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
   r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   r.n_points = cloud.size();
   r.sdf_error = std::numeric_limits<double>::quiet_NaN();
-  lost_detail_.clear();
+  const ExternalAnswer answer = parse_external_answer(line, in.frame, nodes_);
+  lost_detail_ = answer.lost;
+  r.lost = !answer.lost.empty();
+  r.reinit = answer.reinit;
+  if (!r.lost) r.nodes = answer.nodes;
+  return r;
+}
+
+namespace {
+ExternalAnswer answer_from_json(const nlohmann::json& a, const std::string& line,
+                                long long frame_index, int n_nodes) {
+  ExternalAnswer out;
   const auto lost = [&](const std::string& why) {
-    r.lost = true;
-    r.nodes.clear();
-    lost_detail_ = why;
-    return r;
+    out.lost = why;
+    out.nodes.clear();
+    return out;
   };
-  if (!parsed) {
-    // Python's json.dumps writes a non-finite float as a bare NaN or Infinity, which is
-    // not JSON: say so, as the token may lie past what the quote shows.
-    for (const char* token : {"NaN", "Infinity"})
-      if (line.find(token) != std::string::npos)
-        return lost(std::string("the answer is not JSON: it holds ") + token +
-                    ", which JSON has no number for (a node must be finite): " +
-                    quote_answer(line));
-    return lost("the answer is not JSON: " + quote_answer(line));
-  }
   if (!a.is_object()) return lost("the answer is not a JSON object: " + quote_answer(line));
   const auto frame = a.find("frame");
-  if (frame == a.end() || !frame->is_number_integer() || frame->get<long long>() != in.frame)
-    return lost("the answer is not for frame " + std::to_string(in.frame) + ": " + quote_answer(line));
+  if (frame == a.end() || !frame->is_number_integer() || frame->get<long long>() != frame_index)
+    return lost("the answer is not for frame " + std::to_string(frame_index) + ": " +
+                quote_answer(line));
   if (const auto l = a.find("lost"); l != a.end() && l->is_boolean() && l->get<bool>()) {
     const auto why = a.find("reason");
     return lost("the tracker says lost" +
@@ -429,10 +430,10 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
   const auto nodes = a.find("nodes");
   if (nodes == a.end() || !nodes->is_array())
     return lost("the answer has no \"nodes\" list: " + quote_answer(line));
-  if (nodes->size() != static_cast<std::size_t>(nodes_))
+  if (nodes->size() != static_cast<std::size_t>(n_nodes))
     return lost("the answer has " + std::to_string(nodes->size()) + " nodes, expected " +
-                std::to_string(nodes_));
-  r.nodes.resize(static_cast<std::size_t>(nodes_));
+                std::to_string(n_nodes));
+  out.nodes.resize(static_cast<std::size_t>(n_nodes));
   for (std::size_t j = 0; j < nodes->size(); ++j) {
     const nlohmann::json& q = (*nodes)[j];
     if (!q.is_array() || q.size() != 3)
@@ -445,13 +446,33 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
       if (!std::isfinite(v) || std::abs(v) > kMaxCoordinate)
         return lost("node " + std::to_string(j) + " has a coordinate that is not a finite " +
                     "number within 100 m: " + quote_answer(q.dump()));
-      r.nodes[j][c] = v;
+      out.nodes[j][c] = v;
     }
   }
-  if (const auto re = a.find("reinit"); re != a.end() && re->is_boolean() && re->get<bool>()) {
-    r.reinit = true;
+  if (const auto re = a.find("reinit"); re != a.end() && re->is_boolean() && re->get<bool>())
+    out.reinit = true;
+  return out;
+}
+}  // namespace
+
+ExternalAnswer parse_external_answer(const std::string& line, long long frame, int nodes) {
+  nlohmann::json a;
+  try {
+    a = nlohmann::json::parse(line);
+  } catch (const nlohmann::json::exception&) {
+    ExternalAnswer out;
+    // Python's json.dumps writes a non-finite float as a bare NaN or Infinity, which is
+    // not JSON: say so, as the token may lie past what the quote shows.
+    for (const char* token : {"NaN", "Infinity"})
+      if (line.find(token) != std::string::npos) {
+        out.lost = std::string("the answer is not JSON: it holds ") + token +
+                   ", which JSON has no number for (a node must be finite): " + quote_answer(line);
+        return out;
+      }
+    out.lost = "the answer is not JSON: " + quote_answer(line);
+    return out;
   }
-  return r;
+  return answer_from_json(a, line, frame, nodes);
 }
 
 }  // namespace linksight::sim

@@ -1,5 +1,6 @@
 #include "linksight/sim/scene.hpp"
 
+#include "linksight/sim/mesh.hpp"
 #include "linksight/sim/occlusion.hpp"
 
 #include "linksight/sim/yaml.hpp"
@@ -103,6 +104,13 @@ void read_mesh(const Reader& r, const YAML::Node& map, const std::string& where,
     std::error_code ec;
     if (!std::filesystem::is_regular_file(sh.mesh, ec))
       r.fail(map["mesh"], where + ".mesh", sh.mesh.string() + ": mesh file not found");
+    // Read now, so that a file that is no mesh (/etc/passwd, a truncated OBJ) is an error
+    // naming the scene's key, not the sensor's later. A mesh is only ever read.
+    try {
+      (void)load_mesh(sh.mesh);
+    } catch (const io::InputError& e) {
+      r.fail(map["mesh"], where + ".mesh", e.what());
+    }
   } else if (map["mesh"]) {
     r.fail(map["mesh"], where + ".mesh", "only for shape: mesh");
   }
@@ -328,7 +336,10 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<std::strin
 
 std::string resolved_scene_yaml(const std::filesystem::path& path,
                                 const std::vector<std::string>& overrides) {
-  const auto [s, root] = load(path, overrides);
+  // Not a structured binding: clang before 16 (the fuzz build's) cannot capture one.
+  const auto loaded = load(path, overrides);
+  const Scene& s = loaded.first;
+  const YAML::Node& root = loaded.second;
   std::ostringstream y;
   y << "# " << path.string() << ", resolved by linksight";
   for (const std::string& o : overrides) y << " --set " << o;

@@ -78,6 +78,19 @@ struct ExternalFrameInput {
   const io::DepthImage* depth = nullptr;
 };
 
+/// What one answer line of protocol version 1 says (docs/protocol.md): the nodes [m, C],
+/// or why the frame is lost (`lost` non-empty: not JSON, not an object, another frame's,
+/// the tracker's own "lost", no or a wrong count of nodes, a coordinate that is not a
+/// finite number within 100 m), and whether the tracker re-initialized.
+struct ExternalAnswer {
+  std::string lost;
+  Nodes nodes;
+  bool reinit = false;
+};
+/// Reads `line` as the answer for `frame` with `nodes` nodes. Never throws for any line.
+[[nodiscard]] ExternalAnswer parse_external_answer(const std::string& line, long long frame,
+                                                   int nodes);
+
 class ExternalTracker {
  public:
   /// Starts the process. `nodes`: how many nodes an answer must give; `K` and `geometry`:

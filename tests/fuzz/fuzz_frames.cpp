@@ -1,0 +1,30 @@
+// Frame lists: a FILE, DIR or GLOB given as --input, expanded in a folder of a few frames.
+// Every path listed exists and is a frame; anything else is an InputError naming the input
+// or the file in it that is not a frame (a glob's match).
+#include <filesystem>
+
+#include "fuzz_support.hpp"
+#include "linksight/io/frames.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using namespace linksight;
+  namespace fs = std::filesystem;
+  static const fs::path dir = [] {
+    const fs::path d = fuzz::scratch() / "frames";
+    fs::create_directories(d / "sub");
+    for (const char* f : {"f2.ply", "f10.ply", "a.png", "notes.txt", "sub/f1.ply"})
+      std::ofstream(d / f) << "x";
+    return d;
+  }();
+  std::string pattern(reinterpret_cast<const char*>(data), size);
+  if (pattern.find('\0') != std::string::npos) return 0;  // not a path a shell can pass
+  const std::string input = (dir / pattern).string();
+  fuzz::expect_named(dir.string(), [&] {
+    for (const fs::path& p : io::list_frames(input)) {
+      if (!fs::is_regular_file(p)) fuzz::finding("listed " + p.string() + ", not a file");
+      const std::string e = p.extension().string();
+      if (e != ".ply" && e != ".png") fuzz::finding("listed " + p.string() + ", not a frame");
+    }
+  });
+  return 0;
+}
