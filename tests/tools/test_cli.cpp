@@ -1352,6 +1352,71 @@ TEST_F(Cli, ASceneOnlyReadsWhatItNamesAndWritesOnlyUnderOut) {
   EXPECT_FALSE(added.empty());
 }
 
+// Issue 19, part 3: the disk filling up, as a file-size limit (ulimit -f, SIGXFSZ
+// ignored, so that a write past it fails with EFBIG as on a full disk): run, render and
+// synth fail with exit 2 naming the file they could not write and leave no output
+// directory; a sweep keeps its completed cells and no torn shard file, and resumes.
+TEST_F(Cli, AFullDiskLeavesNoPartialOutput) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const auto limited = [&](int kib, const std::string& args) {
+    const std::string cmd = "bash -c \"trap '' XFSZ; ulimit -f " + std::to_string(kib) + "; " +
+                            std::string(LINKSIGHT_EXE) + " " + args + "\" >/dev/null 2>" +
+                            (dir / "full.err").string();
+    CliRun r;
+    r.code = WEXITSTATUS(std::system(cmd.c_str()));
+    r.err = slurp_text(dir / "full.err");
+    return r;
+  };
+  for (const auto& [kib, args] : std::vector<std::pair<int, std::string>>{
+           {200, "run " + scene + " --frames 30 --no-figures"},
+           {100, "render --scene " + scene + " --frames 5"},
+           {20, "synth --frames 5"}}) {
+    const CliRun r = limited(kib, args + " --out " + out.string());
+    EXPECT_EQ(r.code, 2) << args << ": " << r.err;
+    EXPECT_NE(r.err.find(": write failed"), std::string::npos) << args << ": " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(out)) << args;
+    for (const auto& e : fs::directory_iterator(dir))
+      EXPECT_EQ(e.path().filename().string().find("result.partial"), std::string::npos)
+          << args << " left " << e.path();
+  }
+  const std::string sweep = "sweep --scene " + scene +
+                            " --axis noise.scale=0,1,2 --axis tracker.iterations=2,4,6 --frames 2"
+                            " --compare paper,paper-centred --no-figures --quiet --out " +
+                            out.string();
+  const CliRun full = limited(1, sweep);
+  EXPECT_EQ(full.code, 2) << full.err;
+  EXPECT_NE(full.err.find("shard_0_of_1.csv: write failed"), std::string::npos) << full.err;
+  EXPECT_FALSE(fs::exists(out / "shard_0_of_1.csv")) << "no torn shard file";
+  EXPECT_FALSE(fs::exists(out / "cells.csv"));
+  const CliRun resumed = run(sweep, dir);
+  EXPECT_EQ(resumed.code, 0) << resumed.err;
+  EXPECT_EQ(lines_of(out / "cells.csv").size(), 1u + 9 * 2);
+}
+
+// Issue 19, part 3: two runs into the same --out at once cannot corrupt each other: one
+// writes it whole, the other is refused naming the other process (or, started at the same
+// instant, drops its own output), exit 2.
+TEST_F(Cli, TwoRunsIntoOneOutDoNotMix) {
+  const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
+  const std::string one = std::string(LINKSIGHT_EXE) + " run " + scene +
+                          " --frames 90 --no-figures --quiet --out " + out.string();
+  const std::string cmd = "(" + one + " 2>" + (dir / "a.err").string() + "; echo $? >" +
+                          (dir / "a.rc").string() + ") & (sleep 0.2; " + one + " 2>" +
+                          (dir / "b.err").string() + "; echo $? >" + (dir / "b.rc").string() +
+                          "); wait";
+  ASSERT_EQ(std::system(("bash -c '" + cmd + "'").c_str()), 0);
+  const int a = std::stoi(slurp_text(dir / "a.rc")), b = std::stoi(slurp_text(dir / "b.rc"));
+  EXPECT_EQ(a + b, 2) << "one writes, one is refused: " << a << ", " << b;
+  const std::string err = slurp_text(dir / (a == 2 ? "a.err" : "b.err"));
+  EXPECT_TRUE(err.find("another process (pid ") != std::string::npos ||
+              err.find("written by another process") != std::string::npos)
+      << err;
+  EXPECT_EQ(frames_by_mode(out / "frames.csv").begin()->second.size(), 90u) << "whole";
+  std::ifstream js(out / "summary.json");
+  EXPECT_EQ(nlohmann::json::parse(js)["frames"], 90);
+}
+
 // Ctrl-C: the frames done so far are written whole, the summary says so, exit 130.
 TEST_F(Cli, RunInterruptedKeepsCompletedFiles) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml";

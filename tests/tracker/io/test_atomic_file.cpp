@@ -62,13 +62,12 @@ TEST(StagedDir, AppearsWholeOrNotAtAll) {
   EXPECT_TRUE(fs::exists(out / "b.txt"));
 }
 
-TEST(StagedDir, CleansWhatKilledRunsLeft) {
+TEST(StagedDir, CleansWhatKilledRunsLeftAndRefusesWhileAnotherRunWrites) {
   const fs::path dir = test::scratch_dir("StagedDir.CleansWhatKilledRunsLeft");
   const std::string dead = std::to_string(dead_pid());
   const std::string live = std::to_string(::getppid());
-  for (const std::string& name :
-       {"out.partial-" + dead, "out.old-" + dead, "out.partial-" + live, "other.partial-" + dead,
-        "out.partial-x" + dead}) {
+  for (const std::string& name : {"out.partial-" + dead, "out.old-" + dead, "out.old-" + live,
+                                  "other.partial-" + dead, "out.partial-x" + dead}) {
     fs::create_directories(dir / name);
     std::ofstream(dir / name / "frame_0000.ply") << "torn";
   }
@@ -76,9 +75,42 @@ TEST(StagedDir, CleansWhatKilledRunsLeft) {
     StagedDir staged(dir / "out", false);
     EXPECT_FALSE(fs::exists(dir / ("out.partial-" + dead))) << "a killed run's staging";
     EXPECT_FALSE(fs::exists(dir / ("out.old-" + dead))) << "a killed run's replaced output";
-    EXPECT_TRUE(fs::exists(dir / ("out.partial-" + live))) << "a live run's own";
+    EXPECT_TRUE(fs::exists(dir / ("out.old-" + live))) << "a live run's own";
     EXPECT_TRUE(fs::exists(dir / ("other.partial-" + dead))) << "another output's";
     EXPECT_TRUE(fs::exists(dir / ("out.partial-x" + dead))) << "not a staging name";
+  }
+  // A live process staging the same DIR: refused, naming it; its staging untouched.
+  fs::create_directories(dir / ("out.partial-" + live));
+  const std::string e = test::error_of([&] { StagedDir staged(dir / "out", true); });
+  EXPECT_NE(e.find("another process (pid " + live + ") is writing this output directory now"),
+            std::string::npos)
+      << e;
+  EXPECT_TRUE(fs::exists(dir / ("out.partial-" + live)));
+}
+
+// Two runs that start at once into the same DIR: the one that finishes second does not
+// replace the first's output without --force.
+TEST(StagedDir, ADirThatAppearsWhileWritingIsNotReplacedWithoutForce) {
+  const fs::path dir = test::scratch_dir("StagedDir.ADirThatAppears");
+  for (const bool force : {false, true}) {
+    fs::remove_all(dir / "out");
+    StagedDir mine(dir / "out", force);
+    std::ofstream(mine.path() / "mine.txt") << "mine\n";
+    // The other run commits first.
+    fs::create_directories(dir / "out");
+    std::ofstream(dir / "out" / "theirs.txt") << "theirs\n";
+    if (force) {
+      mine.commit();
+      EXPECT_TRUE(fs::exists(dir / "out" / "mine.txt")) << "--force replaces it whole";
+      EXPECT_FALSE(fs::exists(dir / "out" / "theirs.txt"));
+    } else {
+      const std::string e = test::error_of([&] { mine.commit(); });
+      EXPECT_NE(e.find("written by another process while this run was writing it"),
+                std::string::npos)
+          << e;
+      EXPECT_TRUE(fs::exists(dir / "out" / "theirs.txt")) << "theirs kept";
+      EXPECT_FALSE(fs::exists(dir / "out" / "mine.txt"));
+    }
   }
 }
 

@@ -73,16 +73,20 @@ void write_file_atomic(const fs::path& path, const std::function<void(std::ostre
 }
 
 namespace {
-// `name` is `stem` + `tag` + a process id that is no longer running: what a run killed
-// before it could clean up (SIGKILL, a power cut) left beside its output directory.
-bool left_by_a_dead_run(const std::string& name, const std::string& stem, std::string_view tag) {
+// The process id in `name` when it is `stem` + `tag` + digits (not this process's); else 0.
+long pid_in(const std::string& name, const std::string& stem, std::string_view tag) {
   const std::string head = stem + std::string(tag);
-  if (name.size() <= head.size() || name.compare(0, head.size(), head) != 0) return false;
+  if (name.size() <= head.size() || name.compare(0, head.size(), head) != 0) return 0;
   const char* first = name.data() + head.size();
   const char* last = name.data() + name.size();
   long pid = 0;
   const auto r = std::from_chars(first, last, pid);
-  if (r.ec != std::errc() || r.ptr != last || pid <= 0 || pid == ::getpid()) return false;
+  if (r.ec != std::errc() || r.ptr != last || pid <= 0 || pid == ::getpid()) return 0;
+  return pid;
+}
+
+// Whether process `pid` has ended (gone, or a zombie nobody reaped yet).
+bool ended(long pid) {
   if (::kill(static_cast<pid_t>(pid), 0) != 0) return errno == ESRCH;
   // A killed process whose parent is gone too may linger as a zombie until init reaps it.
   std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
@@ -93,7 +97,7 @@ bool left_by_a_dead_run(const std::string& name, const std::string& stem, std::s
 }
 }  // namespace
 
-StagedDir::StagedDir(fs::path dir, bool force) : dir_(std::move(dir)) {
+StagedDir::StagedDir(fs::path dir, bool force) : dir_(std::move(dir)), force_(force) {
   std::error_code ec;
   const fs::file_status st = fs::symlink_status(dir_, ec);
   if (fs::exists(st) && !fs::is_directory(st))
@@ -104,14 +108,19 @@ StagedDir::StagedDir(fs::path dir, bool force) : dir_(std::move(dir)) {
   const fs::path parent = dir_.has_parent_path() ? dir_.parent_path() : fs::path(".");
   fs::create_directories(parent, ec);
   if (ec) throw InputError(parent.string() + ": cannot create directory: " + ec.message());
-  // Staging and replaced directories of runs into the same DIR that were killed: gone now
-  // (a live run's are its own).
+  // Staging and replaced directories of runs into the same DIR that were killed: gone now.
+  // A live run's staging means another process is writing DIR: refused, naming it.
   const std::string stem = dir_.filename().string();
   for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (left_by_a_dead_run(name, stem, ".partial-") || left_by_a_dead_run(name, stem, ".old-")) {
+    const long staging = pid_in(name, stem, ".partial-"), old = pid_in(name, stem, ".old-");
+    if ((staging != 0 && ended(staging)) || (old != 0 && ended(old))) {
       std::error_code rm;
       fs::remove_all(it->path(), rm);
+    } else if (staging != 0) {
+      throw InputError(dir_.string() + ": another process (pid " + std::to_string(staging) +
+                       ") is writing this output directory now (" + it->path().string() +
+                       "); wait for it, or give another --out");
     }
   }
   ec.clear();
@@ -130,6 +139,11 @@ StagedDir::~StagedDir() {
 void StagedDir::commit() {
   std::error_code ec;
   fs::path old;
+  // DIR appeared while this run wrote (another run into the same --out that started at
+  // the same instant): without --force it is not replaced.
+  if (!force_ && fs::exists(dir_, ec))
+    throw InputError(dir_.string() + ": written by another process while this run was " +
+                     "writing it; this run's output is dropped (use --force to replace)");
   if (fs::exists(dir_, ec)) {
     old = dir_.string() + ".old-" + std::to_string(::getpid());
     fs::rename(dir_, old, ec);

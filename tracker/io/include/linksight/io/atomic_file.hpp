@@ -36,7 +36,9 @@ class StagedFiles {
 /// An output directory that appears whole or not at all: files go into a staging
 /// directory `DIR.partial-PID` beside it; commit() renames it to DIR (replacing an old DIR
 /// only when `force`); the destructor removes an uncommitted staging directory.
-/// Throws InputError naming DIR when it exists and !force, or cannot be created.
+/// Construction removes the staging directories of runs into DIR whose process has ended
+/// (killed), and refuses, naming its pid, while another live process stages DIR.
+/// Throws InputError naming DIR when it exists and !force, is a file, or cannot be created.
 class StagedDir {
  public:
   StagedDir(std::filesystem::path dir, bool force);
@@ -50,6 +52,7 @@ class StagedDir {
 
  private:
   std::filesystem::path dir_, staging_;
+  bool force_ = false;
   bool committed_ = false;
 };
 
