@@ -11,6 +11,7 @@
 #include "linksight/io/error.hpp"
 #include "linksight/io/ply.hpp"
 #include "linksight/sim/synthetic_chain.hpp"
+#include "linksight/tracker/limits.hpp"
 #include "linksight/tracker/seed.hpp"
 
 namespace linksight::cli {
@@ -28,10 +29,9 @@ struct SynthOptions {
   bool quiet = false;
 };
 
-// Beyond these a value is a typo: a frame of 11 x 100k samples is 1.1M points (13 MB),
-// far above any depth camera's; a sequence of 100k frames is an hour at 30 fps.
-constexpr int kMaxSamplesPerBall = 100'000;
-constexpr int kMaxSynthFrames = 100'000;
+// kMaxSamplesPerBall, kMaxSynthFrames: linksight/tracker/limits.hpp.
+using sim::kMaxSamplesPerBall;
+using sim::kMaxSynthFrames;
 
 int run_synth(const SynthOptions& o) {
   if (o.frames < 1 || o.frames > kMaxSynthFrames)

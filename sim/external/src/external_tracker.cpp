@@ -43,8 +43,8 @@ int ms_left(double deadline) {
   return left <= 0 ? 0 : static_cast<int>(std::min(left * 1e3 + 1, 2e9));
 }
 
-// An answer longer than this is not a frame's nodes: the framing is lost.
-constexpr std::size_t kMaxAnswer = std::size_t{1} << 20;
+// An answer longer than this is not a frame's nodes: the framing is lost (limits.hpp).
+constexpr std::size_t kMaxAnswer = kMaxAnswerBytes;
 // What an error quotes of the tracker's stderr, and of an answer that is not JSON.
 constexpr int kStderrLines = 8;
 constexpr std::size_t kQuote = 80;

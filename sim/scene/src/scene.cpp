@@ -296,7 +296,7 @@ std::pair<Scene, YAML::Node> load(const std::filesystem::path& path,
   r.only(root, "", kTopKeys);
   const std::filesystem::path base = path.parent_path();
   Scene s;
-  s.duration_s = number(r, root, "", "duration_s", s.duration_s, 1e-3, 3600.0);
+  s.duration_s = number(r, root, "", "duration_s", s.duration_s, 1e-3, kMaxDurationS);
   if (const YAML::Node n = root["seed"])
     s.seed = static_cast<std::uint64_t>(r.integer(n, "seed", 0, 9007199254740994.0));  // [0, 2^53]
   if (const YAML::Node c = root["camera"]) read_camera(r, c, s.camera);

@@ -1,4 +1,5 @@
 #include "linksight/io/nodes_csv.hpp"
+#include "linksight/tracker/limits.hpp"
 
 #include <algorithm>
 #include <array>
@@ -15,11 +16,10 @@ namespace linksight::io {
 namespace {
 
 constexpr std::array<const char*, 5> kColumns = {"frame", "node", "x_m", "y_m", "z_m"};
-// A frame index larger than this is not a frame of any recording (a million frames: 9 h
-// at 30 fps), nor a node index larger than kMaxNode (a chain has at most 100 components):
-// the table's allocation is not the file's choice.
-constexpr std::size_t kMaxIndex = 1'000'000;
-constexpr std::size_t kMaxNode = 1'000;
+// The table's allocation is not the file's choice: kMaxCsvFrame and kMaxCsvNode
+// (limits.hpp) bound the indices.
+constexpr std::size_t kMaxIndex = kMaxCsvFrame;
+constexpr std::size_t kMaxNode = kMaxCsvNode;
 
 std::size_t index_of(const std::string& s, const std::string& where, const char* what) {
   std::size_t v = 0;

@@ -13,13 +13,13 @@
 
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/error.hpp"
+#include "linksight/tracker/limits.hpp"
 
 namespace linksight::io {
 namespace {
 
 // A PLY line (header or ASCII vertex) is short; an unbounded getline would hold a line of
-// any length (a 200 MB comment line cost 780 MB). Longer lines are refused.
-constexpr std::streamsize kMaxPlyLine = 1 << 16;
+// any length (a 200 MB comment line cost 780 MB): kMaxPlyLine (limits.hpp) bounds it.
 
 // The next line into `line` (without its '\n'); false at the end of the input. Throws
 // fail(...) for a line of kMaxPlyLine bytes or more.

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 
 #include "linksight/tracker/init.hpp"
+#include "linksight/tracker/limits.hpp"
 
 namespace linksight {
 
@@ -58,10 +59,7 @@ class BackendUnavailable : public std::runtime_error {
 /// thread count, work-group size or schedule) produce the same bits. Scaling a float by
 /// a power of two is exact, so coordinates of 2^-9 m or more convert without rounding.
 inline constexpr double kFixedPerMetre = 4294967296.0;  // 2^32
-/// Points with a coordinate beyond this are dropped (out of range): with at most
-/// kMaxPoints points, no sum can overflow (2^24 * 100 m * 2^32 < 2^63).
-inline constexpr double kMaxCoordinate = 100.0;  // [m]
-inline constexpr std::size_t kMaxPoints = std::size_t{1} << 24;
+// kMaxCoordinate and kMaxPoints: limits.hpp.
 
 /// Whether the tracker keeps a point of a cloud [m]: finite, and within kMaxCoordinate.
 enum class PointCheck { kept, non_finite, out_of_range };

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "linksight/tracker/backend.hpp"
+#include "linksight/tracker/limits.hpp"
 #include "linksight/tracker/cloud.hpp"
 #include "linksight/tracker/geometry.hpp"
 #include "linksight/tracker/init.hpp"
@@ -20,10 +21,7 @@
 
 namespace linksight {
 
-/// Upper bounds that validate() enforces: beyond them a value is a typo, not a setting.
-inline constexpr int kMaxNodes = 1000;
-inline constexpr int kMaxIterations = 1000;
-inline constexpr int kMaxThreads = 1024;
+// kMaxNodes, kMaxIterations, kMaxThreads: limits.hpp.
 
 /// A known base pose (issue 17, part 4): on the robot, the flange pose from the arm's
 /// joints through the hand–eye calibration. The base frame B is the chain's: ball 0's

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "linksight/io/depth_png.hpp"
+#include "linksight/tracker/limits.hpp"
 #include "linksight/sim/camera.hpp"
 #include "linksight/sim/mesh.hpp"
 #include "linksight/sim/noise.hpp"
@@ -25,7 +26,7 @@ namespace linksight::sim {
 inline constexpr std::uint8_t kLabelOccluder0 = 100;   ///< occluder k has 100 + k
 inline constexpr std::uint8_t kLabelBackground = 200;  ///< table, wall, clutter
 inline constexpr std::uint8_t kLabelNothing = 255;     ///< the ray hit nothing
-inline constexpr int kMaxOccluders = 99;
+// kMaxOccluders: linksight/tracker/limits.hpp.
 
 enum class ShapeKind { box, cylinder, sphere, mesh };
 /// "box", "cylinder", "sphere", "mesh"; parse throws std::invalid_argument naming the

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "linksight/sim/external_tracker.hpp"
+#include "linksight/tracker/limits.hpp"
 #include "linksight/sim/scene.hpp"
 #include "linksight/tracker/tracker.hpp"
 
@@ -31,8 +32,7 @@ struct SweepAxis {
 /// io::InputError naming the file, the line and the key.
 [[nodiscard]] std::vector<SweepAxis> read_grid(const std::filesystem::path& file);
 
-/// Most cells a sweep may have: beyond it a grid is a typo.
-inline constexpr std::size_t kMaxSweepCells = 1'000'000;
+// kMaxSweepCells: linksight/tracker/limits.hpp.
 
 struct SweepSpec {
   std::filesystem::path scene;     ///< base scene; an axis `scene` replaces it per cell

@@ -25,6 +25,7 @@
 #include "linksight/io/error.hpp"
 #include "linksight/tracker/fields.hpp"
 #include "linksight/tracker/format.hpp"
+#include "linksight/tracker/limits.hpp"
 
 namespace linksight::sim::yaml {
 
@@ -33,10 +34,7 @@ struct Override {
   std::string key, value;
 };
 
-/// The largest scene or grid file [bytes]: the shipped scenes are 1-5 KB; a scene of 10,000
-/// waypoints fits. yaml-cpp holds about 110 bytes per input byte, so this bounds a parse at
-/// about 120 MB.
-inline constexpr std::uintmax_t kMaxFileBytes = 1u << 20;
+// kMaxFileBytes: linksight/tracker/limits.hpp.
 
 /// Parses a YAML file. Throws io::InputError "<file>: cannot open <what>",
 /// "<file>: N bytes, more than a <what> may have (kMaxFileBytes)" or

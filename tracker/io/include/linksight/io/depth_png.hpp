@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "linksight/io/intrinsics.hpp"
+#include "linksight/tracker/limits.hpp"
 #include "linksight/tracker/cloud.hpp"
 
 namespace linksight::io {
@@ -19,9 +20,7 @@ struct DepthImage {
   std::vector<std::uint16_t> data;
 };
 
-/// The most pixels a depth PNG may have (16 Mpx, 32 MB decoded): a depth camera's frame is
-/// far smaller, and a header may claim anything.
-inline constexpr long long kMaxDepthPngPixels = 1LL << 24;
+// kMaxDepthPngPixels: linksight/tracker/limits.hpp.
 
 /// A PNG's width, height and bits per sample from its header alone, nothing decoded.
 /// Throws InputError naming the file when it is not a PNG.
