@@ -1417,6 +1417,63 @@ TEST_F(Cli, TwoRunsIntoOneOutDoNotMix) {
   EXPECT_EQ(nlohmann::json::parse(js)["frames"], 90);
 }
 
+// Issue 19, part 3: run, render, synth and simulate killed (SIGKILL) at 20 seeded
+// instants each, before, while and after they write: --out is either absent or complete,
+// never partial; what a kill staged is removed by the next run into the same --out.
+TEST_F(Cli, KilledAtAnyInstantLeavesNoPartialOutput) {
+  const std::string scenes = LINKSIGHT_SCENE_DIR;
+  struct Case {
+    std::string args;
+    double seconds;  // about how long it takes here; kills fall in [0, 1.2 x this]
+    std::function<void(const fs::path&)> complete;
+  };
+  const auto rows = [](const fs::path& f) { return lines_of(f).size(); };
+  const std::vector<Case> cases = {
+      {"run " + scenes + "/static.yaml --frames 20 --no-figures", 0.75,
+       [&](const fs::path& o) {
+         std::ifstream js(o / "summary.json");
+         EXPECT_EQ(nlohmann::json::parse(js)["frames"], 20);
+         EXPECT_EQ(rows(o / "frames.csv"), 21u);
+       }},
+      {"render --scene " + scenes + "/static.yaml --frames 10", 0.25,
+       [&](const fs::path& o) {
+         EXPECT_EQ(rows(o / "truth.csv"), 1u + 10 * 12);
+         EXPECT_TRUE(fs::exists(o / "clouds" / "000009.ply"));
+       }},
+      {"synth --frames 40", 0.15,
+       [&](const fs::path& o) {
+         EXPECT_EQ(rows(o / "truth.csv"), 1u + 40 * 12);
+         EXPECT_TRUE(fs::exists(o / "frame_0039.ply"));
+       }},
+      {"simulate --scene " + scenes + "/default.yaml --frames 150", 0.9,
+       [&](const fs::path& o) { EXPECT_EQ(rows(o / "truth.csv"), 1u + 150 * 12); }},
+  };
+  std::mt19937 rng(19);
+  for (const Case& c : cases) {
+    std::uniform_real_distribution<double> instant(0.0, 1.2 * c.seconds);
+    int complete = 0;
+    for (int k = 0; k < 20; ++k) {
+      fs::remove_all(out);
+      const std::string cmd = "timeout -s KILL " + std::to_string(instant(rng)) + " " +
+                              std::string(LINKSIGHT_EXE) + " " + c.args + " --quiet --out " +
+                              out.string() + " >/dev/null 2>&1";
+      (void)std::system(cmd.c_str());
+      if (fs::exists(out)) {
+        ++complete;
+        c.complete(out);  // whole, whatever the instant
+      }
+    }
+    fs::remove_all(out);
+    // The next run into the same --out removes every staging directory the kills left.
+    ASSERT_EQ(run(c.args + " --quiet --out " + out.string(), dir).code, 0) << c.args;
+    c.complete(out);
+    for (const auto& e : fs::directory_iterator(dir))
+      EXPECT_EQ(e.path().filename().string().find("result.partial-"), std::string::npos)
+          << c.args << " left " << e.path();
+    EXPECT_LT(complete, 20) << c.args << ": no kill landed while it ran";
+  }
+}
+
 // Ctrl-C: the frames done so far are written whole, the summary says so, exit 130.
 TEST_F(Cli, RunInterruptedKeepsCompletedFiles) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml";
