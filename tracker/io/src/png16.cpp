@@ -120,7 +120,9 @@ PngSize png_size(const std::filesystem::path& path) {
 DepthImage read_depth_png(const std::filesystem::path& path) {
   const std::string file = path.string();
   const PngSize size = png_size(path);
-  if (size.width * size.height > kMaxDepthPngPixels)
+  // Each side first: two 32-bit sides multiplied would overflow (found by fuzz_depth_png).
+  if (size.width > kMaxDepthPngPixels || size.height > kMaxDepthPngPixels ||
+      size.width * size.height > kMaxDepthPngPixels)
     throw InputError(file + ": " + std::to_string(size.width) + "x" + std::to_string(size.height) +
                      " pixels is more than a depth image may have (" +
                      std::to_string(kMaxDepthPngPixels) + ")");
