@@ -1475,25 +1475,31 @@ TEST_F(Cli, KilledAtAnyInstantLeavesNoPartialOutput) {
 }
 
 // Ctrl-C: the frames done so far are written whole, the summary says so, exit 130.
+// SIGTERM (a scheduler's stop, issue 19) does what Ctrl-C does.
 TEST_F(Cli, RunInterruptedKeepsCompletedFiles) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml";
-  // 60 s of scene (1801 frames) cannot finish in the 5 s before the interrupt.
-  const std::string cmd = "timeout --preserve-status -s INT 5 " + std::string(LINKSIGHT_EXE) +
-                          " run " + scene + " --set duration_s=60 --quiet --no-figures --out " +
-                          out.string() + " >/dev/null 2>&1";
-  const int status = std::system(cmd.c_str());
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 130);
-  std::ifstream js(out / "summary.json");
-  const nlohmann::json j = nlohmann::json::parse(js);
-  EXPECT_TRUE(j["interrupted"].get<bool>());
-  const int done = j["frames"];
-  EXPECT_GT(done, 0);
-  EXPECT_LT(done, j["frames_planned"].get<int>());
-  std::ifstream in(out / "frames.csv");
-  int rows = -1;
-  for (std::string l; std::getline(in, l);) ++rows;
-  EXPECT_EQ(rows, done);  // one mode: a row per completed frame, none half-written
+  for (const std::string signal : {"INT", "TERM"}) {
+    SCOPED_TRACE(signal);
+    fs::remove_all(out);
+    // 60 s of scene (1801 frames) cannot finish in the 3 s before the signal.
+    const std::string cmd = "timeout --preserve-status -s " + signal + " 3 " +
+                            std::string(LINKSIGHT_EXE) + " run " + scene +
+                            " --set duration_s=60 --quiet --no-figures --out " + out.string() +
+                            " >/dev/null 2>&1";
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 130);
+    std::ifstream js(out / "summary.json");
+    const nlohmann::json j = nlohmann::json::parse(js);
+    EXPECT_TRUE(j["interrupted"].get<bool>());
+    const int done = j["frames"];
+    EXPECT_GT(done, 0);
+    EXPECT_LT(done, j["frames_planned"].get<int>());
+    std::ifstream in(out / "frames.csv");
+    int rows = -1;
+    for (std::string l; std::getline(in, l);) ++rows;
+    EXPECT_EQ(rows, done);  // one mode: a row per completed frame, none half-written
+  }
 }
 
 // linksight sweep: one process, then the same grid as a Slurm-style array of two shards
