@@ -8,7 +8,8 @@ jobs=$(nproc)
 
 bash "$root/tools/setup.sh"
 # robustness-full is the dense grid (about 12 min): run it with ctest -L robustness-full -j 2.
-ctest --test-dir "${LINKSIGHT_BUILD_DIR:-$root/build}" -j "$jobs" -LE robustness-full --output-on-failure
+# soak (tests/soak, about 25 min) is by hand too: ctest -L soak.
+ctest --test-dir "${LINKSIGHT_BUILD_DIR:-$root/build}" -j "$jobs" -LE 'robustness-full|soak' --output-on-failure
 
 echo "test: the tracker and its tests alone: no simulator dependencies, no OpenCL"
 # Configured without sim/ (so Bullet, Embree, assimp and yaml-cpp are never looked for)
