@@ -3,7 +3,12 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <array>
+#include <cerrno>
+#include <cstdint>
 #include <assimp/Importer.hpp>
 #include <cmath>
 #include <iomanip>
@@ -210,7 +215,9 @@ void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh,
   });
 }
 
-TriangleMesh load_mesh(const std::filesystem::path& path) {
+namespace {
+// The reading itself, in this process.
+TriangleMesh read_with_assimp(const std::filesystem::path& path) {
   Assimp::Importer importer;
   const aiScene* scene =
       importer.ReadFile(path.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices);
@@ -220,6 +227,101 @@ TriangleMesh load_mesh(const std::filesystem::path& path) {
   TriangleMesh mesh;
   append_mesh(mesh, *scene, *scene->mRootNode, aiMatrix4x4());
   if (mesh.triangles.empty()) throw io::InputError(path.string() + ": no triangles");
+  return mesh;
+}
+
+// Writes all of `n` bytes (false: the pipe closed).
+bool put(int fd, const void* data, std::size_t n) {
+  const char* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t w = ::write(fd, p, n);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) return false;
+    p += w;
+    n -= static_cast<std::size_t>(w);
+  }
+  return true;
+}
+
+// Reads all of `n` bytes (false: the writer ended first).
+bool get(int fd, void* data, std::size_t n) {
+  char* p = static_cast<char*>(data);
+  while (n > 0) {
+    const ssize_t r = ::read(fd, p, n);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) return false;
+    p += r;
+    n -= static_cast<std::size_t>(r);
+  }
+  return true;
+}
+}  // namespace
+
+// Debian builds assimp with its assertions on, so a malformed file can abort() inside it
+// (fuzz_mesh: an OFF file whose vertex count lies trips an ai_assert in TriangulateProcess).
+// The file is read in a child process: its crash is an InputError naming the file, not the
+// end of linksight. The child sends the mesh (or the error) back over a pipe and leaves
+// with _exit, flushing nothing of the parent's.
+TriangleMesh load_mesh(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  int fds[2];
+  if (::pipe(fds) != 0) throw io::InputError(file + ": cannot read the mesh (no pipe)");
+  const pid_t child = ::fork();
+  if (child < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw io::InputError(file + ": cannot read the mesh (no process)");
+  }
+  if (child == 0) {
+    ::close(fds[0]);
+    std::uint8_t ok = 0;
+    std::string error;
+    TriangleMesh m;
+    try {
+      m = read_with_assimp(path);
+      ok = 1;
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    const std::uint64_t a = ok ? m.vertices.size() : error.size();
+    const std::uint64_t b = ok ? m.triangles.size() : 0;
+    bool sent = put(fds[1], &ok, 1) && put(fds[1], &a, 8) && put(fds[1], &b, 8);
+    if (ok) {
+      for (const Eigen::Vector3f& v : m.vertices) sent = sent && put(fds[1], v.data(), 12);
+      for (const Eigen::Vector3i& t : m.triangles) sent = sent && put(fds[1], t.data(), 12);
+    } else {
+      sent = sent && put(fds[1], error.data(), error.size());
+    }
+    ::_exit(sent ? 0 : 3);
+  }
+  ::close(fds[1]);
+  std::uint8_t ok = 0;
+  std::uint64_t a = 0, b = 0;
+  bool got = get(fds[0], &ok, 1) && get(fds[0], &a, 8) && get(fds[0], &b, 8);
+  TriangleMesh mesh;
+  std::string error;
+  // The child counted what it sends; a bound still keeps a broken count from allocating.
+  constexpr std::uint64_t kMaxItems = std::uint64_t{1} << 28;
+  got = got && a <= kMaxItems && b <= kMaxItems;
+  if (got && ok) {
+    mesh.vertices.resize(a);
+    mesh.triangles.resize(b);
+    for (Eigen::Vector3f& v : mesh.vertices) got = got && get(fds[0], v.data(), 12);
+    for (Eigen::Vector3i& t : mesh.triangles) got = got && get(fds[0], t.data(), 12);
+  } else if (got) {
+    error.resize(a);
+    got = get(fds[0], error.data(), a);
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFSIGNALED(status))
+    throw io::InputError(file + ": the mesh reader (assimp) crashed on this file (signal " +
+                         std::to_string(WTERMSIG(status)) + "): not a mesh it can read");
+  if (!got || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw io::InputError(file + ": the mesh reader (assimp) ended without a mesh");
+  if (!ok) throw io::InputError(error);
   return mesh;
 }
 

@@ -227,6 +227,29 @@ TEST(LoadMesh, GarbageFileThrowsInputErrorNamingTheFile) {
   fs::remove_all(dir);
 }
 
+// Issue 19, found by fuzz_mesh: an OFF file whose vertex count lies makes Debian's assimp
+// abort() (an ai_assert in its TriangulateProcess). load_mesh reads in a child process, so
+// this is an InputError naming the file, and the process goes on to read good meshes.
+TEST(LoadMesh, AFileThatCrashesAssimpIsAnInputError) {
+  const fs::path dir = fs::temp_directory_path() / "linksight_test_mesh_assert";
+  fs::create_directories(dir);
+  const std::string path = (dir / "liar.off").string();
+  std::ofstream(path, std::ios::binary) << "OFF\n3 1 0\n0 0 0\n1 0 2 \n";
+  try {
+    (void)load_mesh(path);
+    ADD_FAILURE() << "no exception";
+  } catch (const io::InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(path + ": the mesh reader (assimp) crashed", 0), 0U)
+        << e.what();
+  }
+  std::ofstream(dir / "ok.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  const TriangleMesh m = load_mesh(dir / "ok.obj");
+  EXPECT_EQ(m.vertices.size(), 3u);
+  ASSERT_EQ(m.triangles.size(), 1u);
+  EXPECT_EQ(m.triangles[0], Eigen::Vector3i(0, 1, 2));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace linksight::sim
 
