@@ -110,7 +110,9 @@ class InterruptGuard {
     if (!used[k])
       throw std::invalid_argument("--tracker '" + given[k].name + "=...': not in --compare '" +
                                   compare + "'");
-  return false;
+  // Only a --compare without a built-in mode runs no scene mode (with modes named it does
+  // not matter; true keeps the sweep manifest as before).
+  return !modes.empty();
 }
 
 /// The 16-bit depth PNGs of `frames` (a directory or one file), each checked against the
