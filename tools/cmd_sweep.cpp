@@ -1,6 +1,7 @@
 // linksight sweep: a grid of short episodes over scene keys, one row per cell, sharded
 // by --shard or a Slurm job array, merged into DIR/cells.csv and heatmaps
 // (tools/plot_sweep.py).
+#include <malloc.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -146,7 +147,8 @@ int run_sweep(const SweepOptions& o) {
     std::optional<InterruptGuard> guard(std::in_place);
     const bool bar = !o.quiet && isatty(fileno(stderr));
     const auto t0 = std::chrono::steady_clock::now();
-    std::vector<sim::SweepRow> rows;
+    // The rows are not kept: the shard file is written from the cells' records, so that
+    // the shard's memory does not grow with its cells.
     std::vector<sim::SweepFailure> failures;
     std::size_t resumed = 0;
     for (std::size_t k = 0; k < cells.size() && !interrupted(); ++k) {
@@ -158,13 +160,16 @@ int run_sweep(const SweepOptions& o) {
         if (!done) {
           done = sim::run_cell(spec, cells[k], o.threads, &interrupted());
           sim::write_cell_record(dir, spec, shard, count, cells[k], *done);
+          // A cell's buffers are freed between small rows and records that outlive them,
+          // which leaves glibc's heap holes it does not give back: without this a shard's
+          // memory grew by about 10 KB a cell (tests/soak, docs/reliability.md).
+          malloc_trim(0);
         }
-        for (sim::SweepRow& r : *done) {
+        for (const sim::SweepRow& r : *done) {
           if (!r.lost_note.empty()) {
             if (bar) std::cerr << "\n";
             std::cerr << "linksight: warning: cell " << cells[k] << ": " << r.lost_note << "\n";
           }
-          rows.push_back(std::move(r));
         }
       } catch (const sim::ExternalTrackerInterrupted&) {
         break;  // interrupted() is set: the shard is not written
@@ -189,7 +194,7 @@ int run_sweep(const SweepOptions& o) {
                 << " (run the same command again to resume)\n";
       return 130;
     }
-    sim::write_shard(dir, spec, shard, count, rows, failures);
+    sim::write_shard_from_records(dir, spec, shard, count, failures);
     // The shard file holds every cell now; with failed cells the records stay, so that a
     // re-run runs only those again.
     if (failures.empty()) {

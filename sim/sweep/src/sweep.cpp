@@ -6,7 +6,9 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -429,8 +431,19 @@ std::string one_field(std::string s) {
 }
 }  // namespace
 
-void write_shard(const fs::path& dir, const SweepSpec& spec, int shard, int count,
-                 const std::vector<SweepRow>& rows, const std::vector<SweepFailure>& failures) {
+namespace {
+// A row as the shard file and a cell's record hold it: the deterministic columns, then the
+// timing columns after the cell and mode.
+void write_row(std::ostream& os, const SweepRow& r) {
+  std::vector<std::string> f = r.values;
+  f.insert(f.end(), r.timing.begin() + 2, r.timing.end());
+  os << csv_line(f);
+}
+
+// The shard file and its .failed.csv; `rows` writes the rows after the header.
+void write_shard_file(const fs::path& dir, const SweepSpec& spec, int shard, int count,
+                      const std::vector<SweepFailure>& failures,
+                      const std::function<void(std::ostream&)>& rows) {
   const fs::path file = dir / shard_file_name(shard, count);
   if (failures.empty()) {
     std::error_code ec;
@@ -443,10 +456,33 @@ void write_shard(const fs::path& dir, const SweepSpec& spec, int shard, int coun
   }
   io::write_file_atomic(file, [&](std::ostream& os) {
     os << csv_line(shard_columns(spec));
-    for (const SweepRow& r : rows) {
-      std::vector<std::string> f = r.values;
-      f.insert(f.end(), r.timing.begin() + 2, r.timing.end());
-      os << csv_line(f);
+    rows(os);
+  });
+}
+}  // namespace
+
+void write_shard(const fs::path& dir, const SweepSpec& spec, int shard, int count,
+                 const std::vector<SweepRow>& rows, const std::vector<SweepFailure>& failures) {
+  write_shard_file(dir, spec, shard, count, failures, [&](std::ostream& os) {
+    for (const SweepRow& r : rows) write_row(os, r);
+  });
+}
+
+void write_shard_from_records(const fs::path& dir, const SweepSpec& spec, int shard, int count,
+                              const std::vector<SweepFailure>& failures) {
+  std::set<std::size_t> failed;
+  for (const SweepFailure& f : failures) failed.insert(f.cell);
+  write_shard_file(dir, spec, shard, count, failures, [&](std::ostream& os) {
+    for (const std::size_t c : shard_cells(spec, shard, count)) {
+      if (failed.count(c) != 0) continue;
+      const std::optional<std::vector<SweepRow>> rows =
+          read_cell_record(dir, spec, shard, count, c);
+      if (!rows)
+        throw io::InputError((cell_records_dir(dir, shard, count) / (std::to_string(c) + ".csv"))
+                                 .string() +
+                             ": cell " + std::to_string(c) +
+                             "'s record is missing or torn (run the shard again)");
+      for (const SweepRow& r : *rows) write_row(os, r);
     }
   });
 }
@@ -529,11 +565,7 @@ void write_cell_record(const fs::path& dir, const SweepSpec& spec, int shard, in
   if (ec) throw io::InputError(records.string() + ": cannot create: " + ec.message());
   io::write_file_atomic(records / (std::to_string(cell) + ".csv"), [&](std::ostream& os) {
     os << csv_line(shard_columns(spec));
-    for (const SweepRow& r : rows) {
-      std::vector<std::string> f = r.values;
-      f.insert(f.end(), r.timing.begin() + 2, r.timing.end());
-      os << csv_line(f);
-    }
+    for (const SweepRow& r : rows) write_row(os, r);
   });
 }
 

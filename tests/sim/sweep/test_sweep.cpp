@@ -140,6 +140,38 @@ TEST_F(Sweep, MergedShardsEqualOneProcessByteForByte) {
   EXPECT_EQ(std::count(timing.begin(), timing.end(), '\n'), 13);
 }
 
+// The CLI writes a shard from its cells' records (so that its memory does not grow with
+// cells): the same bytes as from the rows in memory; a failed cell is left out; a missing
+// record of a cell that did not fail is named, and no shard file is left.
+TEST_F(Sweep, ShardFromCellRecordsEqualsShardFromRows) {
+  const SweepSpec spec = tiny();
+  write_manifest(dir / "rows", spec);
+  write_manifest(dir / "records", spec);
+  std::vector<SweepRow> rows, without_3;
+  for (const std::size_t c : shard_cells(spec, 1, 2)) {
+    const std::vector<SweepRow> cell = run_cell(spec, c, 0);
+    for (const SweepRow& r : cell) {
+      rows.push_back(r);
+      if (c != 3) without_3.push_back(r);
+    }
+    write_cell_record(dir / "records", spec, 1, 2, c, cell);
+  }
+  write_shard(dir / "rows", spec, 1, 2, rows);
+  write_shard_from_records(dir / "records", spec, 1, 2);
+  const std::string name = shard_file_name(1, 2);
+  EXPECT_EQ(slurp(dir / "records" / name), slurp(dir / "rows" / name));
+  // Cell 3 failed: its record is not read (here it is gone) and the rows leave it out.
+  fs::remove(cell_records_dir(dir / "records", 1, 2) / "3.csv");
+  write_shard(dir / "rows", spec, 1, 2, without_3, {{3, "it hung"}});
+  write_shard_from_records(dir / "records", spec, 1, 2, {{3, "it hung"}});
+  EXPECT_EQ(slurp(dir / "records" / name), slurp(dir / "rows" / name));
+  fs::remove(dir / "records" / name);
+  const std::string e =
+      test::error_of([&] { write_shard_from_records(dir / "records", spec, 1, 2); });
+  EXPECT_NE(e.find("3.csv: cell 3's record is missing or torn"), std::string::npos) << e;
+  EXPECT_FALSE(fs::exists(dir / "records" / name));
+}
+
 TEST_F(Sweep, MergeNamesMissingAndDoubledCells) {
   const SweepSpec spec = tiny();
   run_shard(dir, spec, 0, 3);  // cells 0, 3

@@ -118,6 +118,12 @@ struct SweepFailure {
 void write_shard(const std::filesystem::path& dir, const SweepSpec& spec, int shard, int count,
                  const std::vector<SweepRow>& rows,
                  const std::vector<SweepFailure>& failures = {});
+/// The same from the shard's cell records (write_cell_record), read one cell at a time, so
+/// that a shard's memory does not grow with its cells: every cell of the shard but the
+/// failed ones must have its record (else io::InputError naming it).
+void write_shard_from_records(const std::filesystem::path& dir, const SweepSpec& spec,
+                              int shard, int count,
+                              const std::vector<SweepFailure>& failures = {});
 /// Whether DIR/shard_I_of_N.csv exists with the right columns and exactly its cells.
 [[nodiscard]] bool shard_complete(const std::filesystem::path& dir, const SweepSpec& spec,
                                   int shard, int count);
