@@ -139,6 +139,9 @@ std::string exit_status(int status) {
 // The slice a wait looks at the cancel flag and the process in.
 constexpr int kSliceMs = 50;
 
+// The answer already parsed as JSON (defined with parse_external_answer).
+ExternalAnswer answer_from_json(const nlohmann::json& a, const std::string& line,
+                                long long frame_index, int n_nodes);
 }  // namespace
 
 ExternalTracker::ExternalTracker(ExternalTrackerSpec spec, const ExternalParams& params,
@@ -399,7 +402,10 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
   r.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   r.n_points = cloud.size();
   r.sdf_error = std::numeric_limits<double>::quiet_NaN();
-  const ExternalAnswer answer = parse_external_answer(line, in.frame, nodes_);
+  // Parsed once: only a line that is not JSON goes through parse_external_answer, which
+  // says why.
+  const ExternalAnswer answer = parsed ? answer_from_json(a, line, in.frame, nodes_)
+                                       : parse_external_answer(line, in.frame, nodes_);
   lost_detail_ = answer.lost;
   r.lost = !answer.lost.empty();
   r.reinit = answer.reinit;

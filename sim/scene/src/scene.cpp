@@ -286,12 +286,15 @@ const std::set<std::string> kTopKeys = {
 
 // The scene and the YAML tree it was read from (after the overrides).
 std::pair<Scene, YAML::Node> load(const std::filesystem::path& path,
-                                  const std::vector<std::string>& overrides) {
+                                  const std::vector<std::string>& overrides,
+                                  const std::vector<std::string>& axis = {}) {
   const std::string file = path.string();
   YAML::Node root = yaml::load_file(path, "scene");
   if (!root.IsMap()) Reader(file).fail(root, "(top level)", "expected a mapping");
   std::vector<yaml::Override> applied;
   for (const std::string& o : overrides) applied.push_back(yaml::apply_override(file, root, o));
+  for (const std::string& o : axis)
+    applied.push_back(yaml::apply_override(file, root, o, "--axis"));
   const Reader r(file, applied);
   r.only(root, "", kTopKeys);
   const std::filesystem::path base = path.parent_path();
@@ -330,8 +333,9 @@ std::pair<Scene, YAML::Node> load(const std::filesystem::path& path,
 
 }  // namespace
 
-Scene load_scene(const std::filesystem::path& path, const std::vector<std::string>& overrides) {
-  return load(path, overrides).first;
+Scene load_scene(const std::filesystem::path& path, const std::vector<std::string>& overrides,
+                 const std::vector<std::string>& axis) {
+  return load(path, overrides, axis).first;
 }
 
 std::string resolved_scene_yaml(const std::filesystem::path& path,

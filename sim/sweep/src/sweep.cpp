@@ -219,33 +219,19 @@ std::pair<SweepCell, Scene> load_cell(const SweepSpec& spec, std::size_t index) 
   c.values = cell_values(spec, index);
   std::string key;
   bool seed_axis = false;
+  std::vector<std::string> axis;  // applied after --set, and named --axis in errors
   for (std::size_t k = 0; k < spec.axes.size(); ++k) {
     const std::string& name = spec.axes[k].key;
     key += name + "=" + c.values[k] + ";";
     if (name == "scene") {
       c.scene = c.values[k];
     } else {
-      c.overrides.push_back(name + "=" + c.values[k]);
+      axis.push_back(name + "=" + c.values[k]);
       seed_axis = seed_axis || name == "seed";
     }
   }
-  Scene scene;
-  try {
-    scene = load_scene(c.scene, c.overrides);
-  } catch (const io::InputError& e) {
-    // The scene names an override as "--set K=V"; an axis's value came from --axis (or
-    // the grid file), so say that.
-    std::string msg = e.what();
-    for (std::size_t k = 0; k < spec.axes.size(); ++k) {
-      const std::string as_set = "--set " + spec.axes[k].key + "=" + c.values[k] + ":";
-      const std::size_t at = msg.find(as_set);
-      if (spec.axes[k].key != "scene" && at != std::string::npos &&
-          std::find(spec.set.begin(), spec.set.end(), spec.axes[k].key + "=" + c.values[k]) ==
-              spec.set.end())
-        msg.replace(at, 5, "--axis");
-    }
-    throw io::InputError(msg);
-  }
+  c.overrides.insert(c.overrides.end(), axis.begin(), axis.end());
+  Scene scene = load_scene(c.scene, spec.set, axis);
   c.seed = seed_axis ? scene.seed : derive_seed(scene.seed, std::string_view(key));
   scene.seed = c.seed;
   return {std::move(c), std::move(scene)};

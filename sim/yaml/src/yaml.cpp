@@ -46,10 +46,13 @@ YAML::Node node_at(const YAML::Node& map, const std::string& path) {
 void Reader::fail(const YAML::Node& node, const std::string& key, const std::string& what) const {
   // "key = value: rule" reads as one phrase; anything else follows "key: ".
   const std::string sep = what.starts_with("= ") ? " " : ": ";
-  // An overridden key (or one inside it) has no line in the file: name the --set.
-  for (const Override& o : overrides_) {
+  // An overridden key (or one inside it) has no line in the file: name the override, the
+  // last one that covers it (it set the value).
+  for (auto it = overrides_.rbegin(); it != overrides_.rend(); ++it) {
+    const Override& o = *it;
     if (key == o.key || key.starts_with(o.key + ".") || key.starts_with(o.key + "[")) {
-      throw io::InputError(file_ + ": --set " + o.key + "=" + o.value + ": " + key + sep + what);
+      throw io::InputError(file_ + ": " + o.flag + " " + o.key + "=" + o.value + ": " + key + sep +
+                           what);
     }
   }
   const int line = node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 0;
@@ -147,13 +150,14 @@ void Out::list(const char* key, const double* v, std::size_t n) {
 
 // Applies "a.b[0].c=value" to the tree; intermediate mappings are created, list elements
 // must exist. The value is parsed as YAML.
-Override apply_override(const std::string& file, YAML::Node& root, const std::string& text) {
+Override apply_override(const std::string& file, YAML::Node& root, const std::string& text,
+                        const std::string& flag) {
   const auto eq = text.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw io::InputError(file + ": --set " + text + ": expected key.path=value");
-  Override o{text.substr(0, eq), text.substr(eq + 1)};
+    throw io::InputError(file + ": " + flag + " " + text + ": expected key.path=value");
+  Override o{text.substr(0, eq), text.substr(eq + 1), flag};
   auto bad = [&](const std::string& what) {
-    throw io::InputError(file + ": --set " + text + ": " + what);
+    throw io::InputError(file + ": " + flag + " " + text + ": " + what);
   };
   YAML::Node value;
   try {

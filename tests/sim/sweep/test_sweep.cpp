@@ -249,6 +249,14 @@ TEST_F(Sweep, BadSceneKeysInACellAreNamed) {
   spec.axes = {parse_axis("noise.scael=1,2")};
   const std::string e = test::error_of([&] { (void)run_cell(spec, 0, 0); });
   EXPECT_NE(e.find("--axis noise.scael=1: noise.scael: unknown key"), std::string::npos) << e;
+  // Each override is named by where it came from, the last of a key's (which set it).
+  spec.axes = {parse_axis("noise.scale=1,-2")};
+  spec.set = {"noise.scale=-2", "seed=-1"};
+  std::string set = test::error_of([&] { (void)run_cell(spec, 0, 0); });
+  EXPECT_NE(set.find(": --set seed=-1: "), std::string::npos) << set;
+  spec.set = {"noise.scale=-2"};
+  set = test::error_of([&] { (void)run_cell(spec, 1, 0); });
+  EXPECT_NE(set.find(": --axis noise.scale=-2: "), std::string::npos) << set;
 }
 
 }  // namespace

@@ -56,9 +56,11 @@ struct Scene {
 /// before it is read, so they pass the same checks: "camera.fps=60",
 /// "occluders[0].reflectance=0.5", "noise.axial.a_m=0.001", "tracker.mode=accelerated-som".
 /// A value is YAML ("[0.1, 0.2, 0.3]" for a vector). Errors in an overridden key name
-/// "--set <key>" instead of a line.
+/// "--set <key>" instead of a line. `axis` are more, applied after them, from a sweep's
+/// axes: their errors name "--axis <key>".
 [[nodiscard]] Scene load_scene(const std::filesystem::path& path,
-                               const std::vector<std::string>& overrides = {});
+                               const std::vector<std::string>& overrides = {},
+                               const std::vector<std::string>& axis = {});
 
 /// The scene as load_scene reads it, as YAML that loads to the same Scene: every
 /// parameter block (camera, noise, segmentation, chain, world, occlusion, tracker) in

@@ -32,6 +32,7 @@ namespace linksight::sim::yaml {
 /// A `--set key.path=value` override: the key path and the text given.
 struct Override {
   std::string key, value;
+  std::string flag = "--set";  ///< where it came from, for messages: "--set" or "--axis"
 };
 
 // kMaxFileBytes: linksight/tracker/limits.hpp.
@@ -44,7 +45,8 @@ struct Override {
 /// Applies "a.b[0].c=value" to `root`: intermediate mappings are created, list elements
 /// must exist, the value is parsed as YAML. Throws io::InputError naming `file` and the
 /// override.
-Override apply_override(const std::string& file, YAML::Node& root, const std::string& text);
+Override apply_override(const std::string& file, YAML::Node& root, const std::string& text,
+                        const std::string& flag = "--set");
 
 /// Typed reads from YAML nodes with "<file>:<line>: <key>: <problem>" errors (or
 /// "<file>: --set <override>: ..." for a key an override set).
