@@ -21,7 +21,8 @@ build=${LINKSIGHT_FUZZ_BUILD_DIR:-$root/build-fuzz}
 # clang and every library come with tools/setup.sh (tools/test.sh runs it).
 command -v clang++ >/dev/null || { echo "fuzz: clang++ is missing: run bash tools/setup.sh" >&2; exit 1; }
 cmake -S "$root" -B "$build" -DCMAKE_CXX_COMPILER=clang++ \
-  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINKSIGHT_FUZZ=ON -DLINKSIGHT_BUILD_BENCH=OFF \
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" \
+  -DLINKSIGHT_FUZZ=ON -DLINKSIGHT_BUILD_BENCH=OFF \
   "-DCMAKE_CXX_FLAGS=-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all" \
   >/dev/null
 cmake --build "$build" -j "$(nproc)" --target "linksight_fuzz_$target"

@@ -1016,7 +1016,7 @@ TEST_F(Cli, ExternalTrackerAloneInRunAndSweep) {
       << garbage.err;
 }
 
-// Issue 19, F8: a sweep shard killed (SIGKILL at seeded random instants, and Ctrl-C) keeps
+// Issue 19, F8: a sweep shard killed (SIGKILL at seeded random instants, Ctrl-C, SIGTERM) keeps
 // the cells it completed and resumes from them when run again; no shard file is ever left
 // under its final name torn; the merged table is byte for byte the uninterrupted one.
 TEST_F(Cli, SweepKilledAtAnyInstantResumesToTheSameTable) {
@@ -1066,22 +1066,29 @@ TEST_F(Cli, SweepKilledAtAnyInstantResumesToTheSameTable) {
   ASSERT_EQ(run(grid + b.string(), dir).code, 0);
   EXPECT_EQ(slurp_text(b / "cells.csv"), want) << "resumed, byte for byte the same table";
   EXPECT_FALSE(fs::exists(b / "shard_0_of_1.cells")) << "records gone once the shard is written";
-  // Ctrl-C: exit 130, the completed cells kept and named; the next run resumes them.
-  const fs::path c = dir / "interrupted";
-  const std::string interrupt = "timeout --preserve-status -s INT 1 " + std::string(LINKSIGHT_EXE) + " " + grid +
-                                c.string() + " >/dev/null 2>" + (dir / "int.err").string();
-  const int si = std::system(interrupt.c_str());
-  ASSERT_EQ(WEXITSTATUS(si), 130) << slurp_text(dir / "int.err");
-  EXPECT_NE(slurp_text(dir / "int.err").find("its completed cells are kept in"), std::string::npos)
-      << slurp_text(dir / "int.err");
-  EXPECT_FALSE(fs::exists(c / "shard_0_of_1.csv"));
-  const std::string again = std::string(LINKSIGHT_EXE) + " " + grid.substr(0, grid.find(" --quiet")) +
-                            " --out " + c.string() + " >" + (dir / "again.out").string() + " 2>&1";
-  EXPECT_EQ(WEXITSTATUS(std::system(again.c_str())), 0) << slurp_text(dir / "again.out");
-  EXPECT_NE(slurp_text(dir / "again.out").find("cells resumed from an earlier run"),
-            std::string::npos)
-      << slurp_text(dir / "again.out");
-  EXPECT_EQ(slurp_text(c / "cells.csv"), want);
+  // Ctrl-C, and SIGTERM (what Slurm sends at a job's time limit) the same: exit 130, the
+  // completed cells kept and named; the next run resumes them.
+  for (const std::string signal : {"INT", "TERM"}) {
+    SCOPED_TRACE(signal);
+    const fs::path c = dir / ("interrupted_" + signal);
+    const std::string interrupt = "timeout --preserve-status -s " + signal + " 1 " +
+                                  std::string(LINKSIGHT_EXE) + " " + grid + c.string() +
+                                  " >/dev/null 2>" + (dir / "int.err").string();
+    const int si = std::system(interrupt.c_str());
+    ASSERT_EQ(WEXITSTATUS(si), 130) << slurp_text(dir / "int.err");
+    EXPECT_NE(slurp_text(dir / "int.err").find("its completed cells are kept in"),
+              std::string::npos)
+        << slurp_text(dir / "int.err");
+    EXPECT_FALSE(fs::exists(c / "shard_0_of_1.csv"));
+    const std::string again = std::string(LINKSIGHT_EXE) + " " +
+                              grid.substr(0, grid.find(" --quiet")) + " --out " + c.string() +
+                              " >" + (dir / "again.out").string() + " 2>&1";
+    EXPECT_EQ(WEXITSTATUS(std::system(again.c_str())), 0) << slurp_text(dir / "again.out");
+    EXPECT_NE(slurp_text(dir / "again.out").find("cells resumed from an earlier run"),
+              std::string::npos)
+        << slurp_text(dir / "again.out");
+    EXPECT_EQ(slurp_text(c / "cells.csv"), want);
+  }
 }
 
 // --tracker and --compare: names are checked, and a tracker --compare leaves out is refused.
