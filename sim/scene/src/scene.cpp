@@ -6,6 +6,7 @@
 #include "linksight/sim/yaml.hpp"
 
 #include <cmath>
+#include <memory>
 #include <numbers>
 #include <set>
 #include <sstream>
@@ -107,7 +108,7 @@ void read_mesh(const Reader& r, const YAML::Node& map, const std::string& where,
     // Read now, so that a file that is no mesh (/etc/passwd, a truncated OBJ) is an error
     // naming the scene's key, not the sensor's later. A mesh is only ever read.
     try {
-      (void)load_mesh(sh.mesh);
+      sh.mesh_data = std::make_shared<const TriangleMesh>(load_mesh(sh.mesh));
     } catch (const io::InputError& e) {
       r.fail(map["mesh"], where + ".mesh", e.what());
     }

@@ -82,7 +82,7 @@ TriangleMesh Shape::triangles() const {
     case Kind::sphere:
       return sphere_mesh(radius);
     case Kind::mesh: {
-      TriangleMesh m = mesh.empty() ? *mesh_data : load_mesh(mesh);  // names a bad file
+      TriangleMesh m = mesh_data ? *mesh_data : load_mesh(mesh);  // names a bad file
       for (Eigen::Vector3f& v : m.vertices) v *= static_cast<float>(scale);
       return m;
     }

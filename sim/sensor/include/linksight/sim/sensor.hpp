@@ -42,7 +42,8 @@ struct Shape {
   double radius = 0.05;                  ///< cylinder (around z) and sphere [m]
   double half_length = 0.05;             ///< cylinder, along z [m]
   std::filesystem::path mesh;            ///< mesh: any file assimp reads
-  /// mesh: triangles given in memory instead of a file (when `mesh` is empty) [m]
+  /// mesh: the triangles in memory, in file units: used instead of reading `mesh` (a scene
+  /// keeps what it read at load, so each file is read once), or alone when `mesh` is empty
   std::shared_ptr<const TriangleMesh> mesh_data;
   double scale = 1.0;                    ///< mesh: file units to metres
   /// The keys of a shaped item (occluders, background objects; fields.hpp); `mesh` is
