@@ -230,6 +230,9 @@ TriangleMesh read_with_assimp(const std::filesystem::path& path) {
   return mesh;
 }
 
+// The child sends the arrays as they lie in memory: three packed 4-byte values each.
+static_assert(sizeof(Eigen::Vector3f) == 12 && sizeof(Eigen::Vector3i) == 12);
+
 // Writes all of `n` bytes (false: the pipe closed).
 bool put(int fd, const void* data, std::size_t n) {
   const char* p = static_cast<const char*>(data);
@@ -287,8 +290,8 @@ TriangleMesh load_mesh(const std::filesystem::path& path) {
     const std::uint64_t b = ok ? m.triangles.size() : 0;
     bool sent = put(fds[1], &ok, 1) && put(fds[1], &a, 8) && put(fds[1], &b, 8);
     if (ok) {
-      for (const Eigen::Vector3f& v : m.vertices) sent = sent && put(fds[1], v.data(), 12);
-      for (const Eigen::Vector3i& t : m.triangles) sent = sent && put(fds[1], t.data(), 12);
+      sent = sent && put(fds[1], m.vertices.data(), m.vertices.size() * 12) &&
+             put(fds[1], m.triangles.data(), m.triangles.size() * 12);
     } else {
       sent = sent && put(fds[1], error.data(), error.size());
     }
@@ -306,8 +309,7 @@ TriangleMesh load_mesh(const std::filesystem::path& path) {
   if (got && ok) {
     mesh.vertices.resize(a);
     mesh.triangles.resize(b);
-    for (Eigen::Vector3f& v : mesh.vertices) got = got && get(fds[0], v.data(), 12);
-    for (Eigen::Vector3i& t : mesh.triangles) got = got && get(fds[0], t.data(), 12);
+    got = get(fds[0], mesh.vertices.data(), a * 12) && get(fds[0], mesh.triangles.data(), b * 12);
   } else if (got) {
     error.resize(a);
     got = get(fds[0], error.data(), a);
