@@ -66,6 +66,25 @@ TEST_F(DepthPng, RejectsEightBitAndColour) {
   EXPECT_THROW((void)read_depth_png(dir / "junk.png"), InputError);
 }
 
+// A chunk that declares more bytes than the file holds is refused before decoding:
+// stb_image sized its buffer by the declared length first (fuzz_depth_png: a 130-byte file
+// whose IDAT declares 1.2 GB took 2 GiB). The valid file's chunks all fit.
+TEST_F(DepthPng, AChunkLongerThanTheFileIsRefusedBeforeDecoding) {
+  write_depth_png(dir / "ok.png", DepthImage{2, 1, {0x1234, 0xABCD}});
+  std::ifstream in(dir / "ok.png", std::ios::binary);
+  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_EQ(read_depth_png(dir / "ok.png").data, (std::vector<std::uint16_t>{0x1234, 0xABCD}));
+  // The IDAT chunk (at byte 33) now declares 0x48000000 bytes.
+  bytes[33] = 0x48;
+  std::ofstream(dir / "long.png", std::ios::binary).write(bytes.data(),
+                                                          static_cast<std::streamsize>(bytes.size()));
+  const std::string e = test::error_of([&] { (void)read_depth_png(dir / "long.png"); });
+  EXPECT_NE(e.find("long.png: not a readable PNG (the chunk at byte 33 declares 1207959568 "
+                   "bytes, the file has 32 after its header)"),
+            std::string::npos)
+      << e;
+}
+
 TEST_F(DepthPng, PlaneBackProjectsToItsDepth) {
   Intrinsics k;
   k.width = 64;

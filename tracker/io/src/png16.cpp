@@ -126,10 +126,34 @@ DepthImage read_depth_png(const std::filesystem::path& path) {
     throw InputError(file + ": " + std::to_string(size.width) + "x" + std::to_string(size.height) +
                      " pixels is more than a depth image may have (" +
                      std::to_string(kMaxDepthPngPixels) + ")");
+  // A 16-bit PNG of the most pixels, stored uncompressed, is about 2 bytes a pixel: a
+  // larger file is refused before it is read in.
+  constexpr std::uintmax_t kMaxBytes = 4 * static_cast<std::uintmax_t>(kMaxDepthPngPixels) + (1 << 20);
+  std::error_code ec;
+  const std::uintmax_t file_bytes = std::filesystem::file_size(path, ec);
+  if (ec) throw InputError(file + ": cannot read (" + ec.message() + ")");
+  if (file_bytes > kMaxBytes)
+    throw InputError(file + ": " + std::to_string(file_bytes) +
+                     " bytes is more than a depth PNG may have (" + std::to_string(kMaxBytes) +
+                     ")");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(file + ": cannot open");
-  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)),
-                                std::istreambuf_iterator<char>());
+  std::vector<char> bytes(static_cast<std::size_t>(file_bytes));
+  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  bytes.resize(static_cast<std::size_t>(in.gcount()));
+  // Every chunk must fit in the file: stb_image sizes its buffer by an IDAT chunk's declared
+  // length before reading it, so a 100-byte file declaring 1 GiB took 2 GiB (found by
+  // fuzz_depth_png).
+  for (std::size_t at = 8; at + 8 <= bytes.size();) {
+    const auto* c = reinterpret_cast<const unsigned char*>(bytes.data() + at);
+    const std::uint64_t length = (std::uint64_t{c[0]} << 24) | (c[1] << 16) | (c[2] << 8) | c[3];
+    if (length + 12 > bytes.size() - at)
+      throw InputError(file + ": not a readable PNG (the chunk at byte " + std::to_string(at) +
+                       " declares " + std::to_string(length) + " bytes, the file has " +
+                       std::to_string(bytes.size() - at - 8) + " after its header)");
+    if (std::memcmp(c + 4, "IEND", 4) == 0) break;
+    at += 12 + static_cast<std::size_t>(length);
+  }
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
   const int len = static_cast<int>(bytes.size());
   int w = 0, h = 0, comp = 0;
