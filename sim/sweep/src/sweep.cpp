@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <optional>
 #include <set>
@@ -374,7 +375,21 @@ SweepSpec read_manifest(const fs::path& dir) {
   if (!in) throw io::InputError(path.string() + ": no sweep manifest here (not a sweep directory?)");
   try {
     const nlohmann::json j = nlohmann::json::parse(in);
-    if (j.at("version").get<int>() != kManifestVersion)
+    // An integer JSON value, checked first: get<int>() of 2e35 is undefined behaviour
+    // (found by fuzz_shard).
+    const auto integer = [&](const char* key, long long hi) {
+      const nlohmann::json& v = j.at(key);
+      const bool ok = v.is_number_unsigned()
+                          ? v.get<std::uint64_t>() <= static_cast<std::uint64_t>(hi)
+                          : v.is_number_integer() && v.get<long long>() >= 0 &&
+                                v.get<long long>() <= hi;
+      if (!ok)
+        throw io::InputError(path.string() + ": " + key + " " + v.dump() +
+                             ": expected an integer in [0, " + std::to_string(hi) + "]");
+      return v.get<long long>();
+    };
+    constexpr long long kIntMax = std::numeric_limits<int>::max();
+    if (integer("version", kIntMax) != kManifestVersion)
       throw io::InputError(path.string() + ": version " + j.at("version").dump() +
                            ", expected " + std::to_string(kManifestVersion));
     SweepSpec s;
@@ -388,9 +403,10 @@ SweepSpec read_manifest(const fs::path& dir) {
     if (j.contains("external"))
       for (const auto& e : j.at("external"))
         s.external.push_back({e.at("name").get<std::string>(), e.at("command").get<std::string>()});
-    s.frames = j.at("frames").get<int>();
+    s.frames = static_cast<int>(integer("frames", kIntMax));
     s.validate();
-    if (j.at("cells").get<std::size_t>() != s.cells())
+    if (static_cast<std::size_t>(integer("cells", std::numeric_limits<long long>::max())) !=
+        s.cells())
       throw io::InputError(path.string() + ": cells " + j.at("cells").dump() +
                            " does not match its axes (" + std::to_string(s.cells()) + ")");
     return s;

@@ -172,6 +172,24 @@ TEST_F(Sweep, ShardFromCellRecordsEqualsShardFromRows) {
   EXPECT_FALSE(fs::exists(dir / "records" / name));
 }
 
+// The manifest's integers are checked before they are converted (fuzz_shard: a version
+// of 2e35 was undefined behaviour in the conversion to int).
+TEST_F(Sweep, AManifestIntegerOutOfRangeIsNamed) {
+  write_manifest(dir, tiny());
+  const std::string text = slurp(dir / "sweep.json");
+  for (const std::string bad : {"2.2e+35", "-1", "1.5", "\"1\"", "18446744073709551615"}) {
+    std::string edited = text;
+    const std::size_t at = edited.find("\"frames\": 2");
+    ASSERT_NE(at, std::string::npos) << text;
+    edited.replace(at, 11, "\"frames\": " + bad);
+    std::ofstream(dir / "sweep.json") << edited;
+    const std::string e = test::error_of([&] { (void)read_manifest(dir); });
+    EXPECT_NE(e.find("sweep.json: frames " + bad + ": expected an integer in [0, 2147483647]"),
+              std::string::npos)
+        << e;
+  }
+}
+
 TEST_F(Sweep, MergeNamesMissingAndDoubledCells) {
   const SweepSpec spec = tiny();
   run_shard(dir, spec, 0, 3);  // cells 0, 3
