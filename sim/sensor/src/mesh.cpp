@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cerrno>
+#include <csignal>
 #include <cstdint>
 #include <assimp/Importer.hpp>
 #include <cmath>
@@ -277,6 +278,11 @@ TriangleMesh load_mesh(const std::filesystem::path& path) {
   }
   if (child == 0) {
     ::close(fds[0]);
+    // The parent's handlers (the CLI's Ctrl-C flag, a fuzzer's or sanitizer's crash
+    // report) are not the child's: a crash in assimp ends the child by its signal, which
+    // the parent names; Ctrl-C ends it too.
+    for (const int sig : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGINT, SIGTERM})
+      std::signal(sig, SIG_DFL);
     std::uint8_t ok = 0;
     std::string error;
     TriangleMesh m;
