@@ -431,9 +431,7 @@ std::string one_field(std::string s) {
     else if (c == ',') c = ';';
   return s;
 }
-}  // namespace
 
-namespace {
 // A row as the shard file and a cell's record hold it: the deterministic columns, then the
 // timing columns after the cell and mode.
 void write_row(std::ostream& os, const SweepRow& r) {

@@ -67,7 +67,7 @@ TEST_F(DepthPng, RejectsEightBitAndColour) {
 }
 
 // A chunk that declares more bytes than the file holds is refused before decoding:
-// stb_image sized its buffer by the declared length first (fuzz_depth_png: a 130-byte file
+// stb_image sized its buffer by the declared length first (fuzz_depth_png: a 117-byte file
 // whose IDAT declares 1.2 GB took 2 GiB). The valid file's chunks all fit.
 TEST_F(DepthPng, AChunkLongerThanTheFileIsRefusedBeforeDecoding) {
   write_depth_png(dir / "ok.png", DepthImage{2, 1, {0x1234, 0xABCD}});
