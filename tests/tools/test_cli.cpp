@@ -1024,13 +1024,16 @@ TEST_F(Cli, SweepKilledAtAnyInstantResumesToTheSameTable) {
   const std::string grid = "sweep --scene " + scene +
                            " --axis noise.scale=0,1,2 --axis tracker.iterations=2,4 --frames 30"
                            " --compare paper --no-figures --quiet --out ";
+  const auto t0 = std::chrono::steady_clock::now();
   ASSERT_EQ(run(grid + (dir / "whole").string(), dir).code, 0);
+  // The whole sweep's time here (about 1.7 s on 2 cores, several times that under the
+  // sanitizers): the instants fall before, in and between its cells; a run that resumes
+  // needs less, so later kills may come too late.
+  const double whole_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::string want = slurp_text(dir / "whole" / "cells.csv");
   const fs::path b = dir / "killed";
   std::mt19937 rng(20261125);
-  // About 1.7 s for the whole sweep on a 2-core machine: the instants fall before, in and
-  // between its cells; a run that resumes needs less, so later kills may come too late.
-  std::uniform_real_distribution<double> instant(0.05, 1.0);
+  std::uniform_real_distribution<double> instant(0.03 * whole_s, 0.6 * whole_s);
   int kills = 0, resumed = 0, finished = 0;
   // 20 instants; a run that finishes before its instant is checked and started afresh.
   for (int attempt = 0; attempt < 20; ++attempt) {
@@ -1071,7 +1074,8 @@ TEST_F(Cli, SweepKilledAtAnyInstantResumesToTheSameTable) {
   for (const std::string signal : {"INT", "TERM"}) {
     SCOPED_TRACE(signal);
     const fs::path c = dir / ("interrupted_" + signal);
-    const std::string interrupt = "timeout --preserve-status -s " + signal + " 1 " +
+    const std::string interrupt = "timeout --preserve-status -s " + signal + " " +
+                                  std::to_string(0.6 * whole_s) + " " +
                                   std::string(LINKSIGHT_EXE) + " " + grid + c.string() +
                                   " >/dev/null 2>" + (dir / "int.err").string();
     const int si = std::system(interrupt.c_str());
