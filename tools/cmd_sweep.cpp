@@ -151,6 +151,8 @@ int run_sweep(const SweepOptions& o) {
     // the shard's memory does not grow with its cells.
     std::vector<sim::SweepFailure> failures;
     std::size_t resumed = 0;
+    // Where no axis moves the world, the shard's cells replay its first run cell's physics.
+    sim::SweepShared shared;
     for (std::size_t k = 0; k < cells.size() && !interrupted(); ++k) {
       try {
         // A cell an earlier run of this shard completed (it was killed or stopped later).
@@ -158,7 +160,7 @@ int run_sweep(const SweepOptions& o) {
             sim::read_cell_record(dir, spec, shard, count, cells[k]);
         resumed += done.has_value();
         if (!done) {
-          done = sim::run_cell(spec, cells[k], o.threads, &interrupted());
+          done = sim::run_cell(spec, cells[k], o.threads, &interrupted(), &shared);
           sim::write_cell_record(dir, spec, shard, count, cells[k], *done);
           // A cell's buffers are freed between small rows and records that outlive them,
           // which leaves glibc's heap holes it does not give back: without this a shard's

@@ -94,13 +94,20 @@ struct CellResult {
   int board_frames = 0;
 };
 
-// `modes`, then `external` trackers (their results after the modes').
+// `modes`, then `external` trackers (their results after the modes'). `shared`: the
+// suite's cells' (run_cell's sharing, so that a suite steps Bullet once: its grid's
+// axes leave the world alone); nullptr: this cell's own physics.
 CellResult run(const Scene& scene, const std::vector<TrackerMode>& modes,
-               const std::vector<ExternalTrackerSpec>& external = {}) {
+               const std::vector<ExternalTrackerSpec>& external = {},
+               SweepShared* shared = nullptr) {
   EpisodeOptions o;
   o.modes = modes;
   o.external = external;
   o.threads = 1;
+  if (shared != nullptr) {
+    o.replay = shared->physics;
+    o.record = o.replay == nullptr;
+  }
   Episode e(scene, o);
   const std::size_t m = modes.size() + external.size();
   CellResult cell;
@@ -153,6 +160,7 @@ CellResult run(const Scene& scene, const std::vector<TrackerMode>& modes,
     r[k].sdf_before = sdf[k].empty() ? NAN : sum / static_cast<double>(sdf[k].size());
   }
   if (cell.board_frames > 0) cell.occluded_in /= cell.board_frames;
+  if (shared != nullptr && !shared->physics) shared->physics = e.recording();
   return cell;
 }
 
@@ -239,6 +247,8 @@ TEST(Robustness, Bands) {
   std::printf("%-34s %-16s %6s %6s %8s %8s %8s %6s %6s %6s %8s\n", "cell", "mode", "noise",
               "occl", "err_mm", "worst_mm", "sdf_mm", "swaps", "slips", "recov", "occl_in");
   int cells_with_events = 0;
+  ASSERT_TRUE(shares_world(spec)) << "a grid axis moves the world: each cell its own physics";
+  SweepShared shared;
   for (std::size_t i = 0; i < spec.cells(); ++i) {
     const SweepCell cell = sweep_cell(spec, i);
     const Scene scene = sweep_cell_scene(spec, i);
@@ -247,7 +257,7 @@ TEST(Robustness, Bands) {
     std::string name = scene_file + " at=" + at;
     for (std::size_t k = 0; k < spec.axes.size(); ++k)
       name += " " + spec.axes[k].key + "=" + cell.values[k];
-    const CellResult result = run(scene, modes);
+    const CellResult result = run(scene, modes, {}, &shared);
     const std::vector<ModeResult>& r = result.modes;
     {
       SCOPED_TRACE(name);
@@ -300,6 +310,8 @@ TEST(Robustness, ChainFitWithBasePrior) {
   const std::string& at = suite.at;
   const SweepSpec spec = suite.spec({"tracker.base_prior.enabled=true"});
   const TrackerMode chain_fit = parse_mode("chain-fit");
+  ASSERT_TRUE(shares_world(spec)) << "a grid axis moves the world: each cell its own physics";
+  SweepShared shared;
   int cells = 0;
   for (std::size_t i = 0; i < spec.cells(); ++i) {
     const SweepCell cell = sweep_cell(spec, i);
@@ -316,7 +328,7 @@ TEST(Robustness, ChainFitWithBasePrior) {
     ASSERT_TRUE(std::isfinite(noise) && std::isfinite(occl)) << "the grid lacks an axis";
     if (noise > kChainFitMaxNoise || occl > kChainFitMaxHidden) continue;
     ++cells;
-    const ModeResult mr = run(scene, {chain_fit}).modes[0];
+    const ModeResult mr = run(scene, {chain_fit}, {}, &shared).modes[0];
     std::printf("%-34s %-16s %6.2f %6.2f %8.2f %8.2f %8.2f %6d %6d %6d\n",
                 ("cell " + std::to_string(i)).c_str(), "chain-fit+prior", noise, occl,
                 mr.before * 1e3, mr.worst * 1e3, mr.sdf_before * 1e3, mr.swaps, mr.misassigned,
@@ -351,6 +363,8 @@ TEST(Robustness, ExternalTracker) {
       << "LINKSIGHT_ROBUSTNESS_BANDS = " << bands << ": chain-fit or paper";
   const SweepSpec spec = suite.spec();
   const bool moving = suite.scene_file.find("moving") != std::string::npos;
+  ASSERT_TRUE(shares_world(spec)) << "a grid axis moves the world: each cell its own physics";
+  SweepShared shared;
   int cells = 0;
   for (std::size_t i = 0; i < spec.cells(); ++i) {
     const SweepCell cell = sweep_cell(spec, i);
@@ -362,7 +376,7 @@ TEST(Robustness, ExternalTracker) {
       if (spec.axes[k].key == "occlusion.fraction") occl = std::stod(cell.values[k]);
     }
     ASSERT_TRUE(std::isfinite(noise) && std::isfinite(occl)) << "the grid lacks an axis";
-    const ModeResult mr = run(sweep_cell_scene(spec, i), {}, {spec_t}).modes.back();
+    const ModeResult mr = run(sweep_cell_scene(spec, i), {}, {spec_t}, &shared).modes.back();
     std::printf("%-34s %-16s %6.2f %6.2f %8.2f %8.2f %8.2f %6d %6d %6d\n",
                 ("cell " + std::to_string(i)).c_str(), spec_t.name.c_str(), noise, occl,
                 mr.before * 1e3, mr.worst * 1e3, mr.sdf_before * 1e3, mr.swaps, mr.misassigned,

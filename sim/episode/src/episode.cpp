@@ -10,6 +10,7 @@
 #include "linksight/sim/extract.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/world.hpp"
+#include "linksight/tracker/format.hpp"
 #include "linksight/tracker/seed.hpp"
 
 namespace linksight::sim {
@@ -90,6 +91,9 @@ struct Episode::Impl {
   std::future<void> physics_ahead;
   // A step that threw leaves the world ahead of the frames: no further step.
   bool failed = false;
+  // The truth replayed instead of the world (options.replay), or the one being recorded.
+  std::shared_ptr<const PhysicsRecording> replay;
+  std::shared_ptr<PhysicsRecording> recorded;
 };
 
 Episode::Episode(const Scene& scene, const EpisodeOptions& options)
@@ -101,7 +105,22 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
   m.modes = options.modes.empty() && options.scene_mode
                 ? std::vector<TrackerMode>{scene.tracker.mode}
                 : options.modes;
-  m.world = make_world(scene);
+  if (options.replay) {
+    const PhysicsRecording& r = *options.replay;
+    if (!(r.fps == scene.camera.fps) || r.frames.size() < static_cast<std::size_t>(m.frames))
+      throw std::invalid_argument(
+          "episode: the physics recording has " + std::to_string(r.frames.size()) +
+          " frames at " + format_shortest(r.fps) + " fps; this episode needs " +
+          std::to_string(m.frames) + " at " + format_shortest(scene.camera.fps));
+    m.replay = options.replay;
+  } else {
+    m.world = make_world(scene);
+    if (options.record) {
+      m.recorded = std::make_shared<PhysicsRecording>();
+      m.recorded->fps = scene.camera.fps;
+      m.recorded->frames.reserve(static_cast<std::size_t>(m.frames));
+    }
+  }
   m.sensor = make_sensor(scene, options.threads);
   // A tracker that reads the depth image (chain-fit's free-space evidence) reads it
   // anywhere a hidden ball may be held, not only in the true chain's box: whole frames.
@@ -177,15 +196,19 @@ const EpisodeFrame& Episode::step_frame() {
   const int f = m.done;
   const auto frame = static_cast<std::uint64_t>(f);
   auto t0 = std::chrono::steady_clock::now();
-  if (m.physics_ahead.valid()) {
-    m.physics_ahead.get();  // rethrows what the world threw
-  } else {
-    m.world->step_until(f / m.scene.camera.fps);
-  }
   EpisodeFrame& o = m.out;
   o.frame = f;
-  o.truth = m.world->truth();
-  if (f + 1 < m.frames) {
+  if (m.replay) {
+    o.truth = m.replay->frames[static_cast<std::size_t>(f)];
+  } else if (m.physics_ahead.valid()) {
+    m.physics_ahead.get();  // rethrows what the world threw
+    o.truth = m.world->truth();
+  } else {
+    m.world->step_until(f / m.scene.camera.fps);
+    o.truth = m.world->truth();
+  }
+  if (m.recorded) m.recorded->frames.push_back(o.truth);
+  if (m.world && f + 1 < m.frames) {
     World* world = m.world.get();
     const double t_next = (f + 1) / m.scene.camera.fps;
     m.physics_ahead = std::async(std::launch::async, [world, t_next] { world->step_until(t_next); });
@@ -257,6 +280,13 @@ const EpisodeFrame& Episode::step_frame() {
   m.times.score = scoring;
   ++m.done;
   return o;
+}
+
+std::shared_ptr<const PhysicsRecording> Episode::recording() const {
+  const Impl& m = *impl_;
+  if (m.done < m.frames) return nullptr;  // a step that threw leaves done short too
+  if (m.replay) return m.replay;
+  return m.recorded;
 }
 
 std::vector<EpisodeSummary> Episode::summaries() const {

@@ -257,8 +257,25 @@ std::vector<std::string> sweep_columns(const SweepSpec& spec) {
 
 std::vector<std::string> sweep_timing_columns() { return {std::begin(kTiming), std::end(kTiming)}; }
 
+bool shares_world(const SweepSpec& spec) {
+  // Keys the world never reads; anything else (an unknown key included) may move it.
+  static constexpr std::string_view kSensorOnly[] = {"seed",       "noise",        "occlusion",
+                                                      "occluders",  "background",   "segmentation",
+                                                      "tracker",    "external"};
+  for (const SweepAxis& a : spec.axes) {
+    bool sensor_only = false;
+    for (const std::string_view root : kSensorOnly)
+      sensor_only = sensor_only ||
+                    (a.key.compare(0, root.size(), root) == 0 &&
+                     (a.key.size() == root.size() || a.key[root.size()] == '.' ||
+                      a.key[root.size()] == '['));
+    if (!sensor_only) return false;
+  }
+  return true;
+}
+
 std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int threads,
-                               const std::atomic<bool>* cancel) {
+                               const std::atomic<bool>* cancel, SweepShared* shared) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto [cell, scene] = load_cell(spec, index);
   EpisodeOptions o;
@@ -269,6 +286,11 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
   o.cancel = cancel;
   o.threads = threads;
   o.chain_only_images = true;  // a cell writes numbers only, never an image
+  const bool share = shared != nullptr && shares_world(spec);
+  if (share) {
+    o.replay = shared->physics;
+    o.record = o.replay == nullptr;
+  }
   Episode e(scene, o);
   const std::vector<std::string> names = e.names();
   const std::size_t m = names.size();
@@ -281,6 +303,7 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
         first[k] = "frame " + std::to_string(f.frame) + ": " + f.lost_details[k];
   }
   e.stop_external();
+  if (share && !shared->physics) shared->physics = e.recording();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::vector<EpisodeSummary> sums = e.summaries();
   std::vector<SweepRow> rows;

@@ -131,6 +131,64 @@ TEST(Episode, SameScoresForAnyThreadCount) {
   EXPECT_EQ(errors(1), errors(2));
 }
 
+// A recorded episode's physics, replayed by another episode of the same world with other
+// noise and a board (what a sweep's cells share): every frame's truth, track and score is
+// what that episode gives running its own world, bit for bit; a replay too short or at
+// another frame rate is refused.
+TEST(Episode, ReplayedPhysicsGivesTheSameFramesAsTheWorld) {
+  const Scene recorded = load_scene(kScenes / "default.yaml");
+  const Scene scene = load_scene(kScenes / "default.yaml",
+                                 {"noise.scale=2", "occlusion.fraction=0.3", "seed=9"});
+  EpisodeOptions o;
+  o.frames = 12;
+  o.modes = {parse_mode("chain-fit"), parse_mode("paper")};
+  o.record = true;
+  Episode first(recorded, o);
+  EXPECT_EQ(first.recording(), nullptr);  // not before the last frame
+  while (first.done() < first.frames()) (void)first.step();
+  const std::shared_ptr<const PhysicsRecording> physics = first.recording();
+  ASSERT_NE(physics, nullptr);
+  ASSERT_EQ(physics->frames.size(), 12u);
+  EXPECT_EQ(physics->fps, recorded.camera.fps);
+
+  o.record = false;
+  EpisodeOptions replay = o;
+  replay.replay = physics;
+  Episode own(scene, o), replayed(scene, replay);
+  int moved = 0;
+  while (own.done() < own.frames()) {
+    const EpisodeFrame& a = own.step();
+    const Truth truth = a.truth;
+    const std::vector<FrameResult> results = a.results;
+    const std::vector<FrameScore> scores = a.scores;
+    const EpisodeFrame& b = replayed.step();
+    SCOPED_TRACE("frame " + std::to_string(b.frame));
+    EXPECT_EQ(b.truth.t, truth.t);
+    ASSERT_EQ(b.truth.nodes_W.size(), truth.nodes_W.size());
+    for (std::size_t j = 0; j < truth.nodes_W.size(); ++j)
+      EXPECT_EQ(b.truth.nodes_W[j], truth.nodes_W[j]);
+    ASSERT_EQ(b.truth.X_WK.size(), truth.X_WK.size());
+    for (std::size_t j = 0; j < truth.X_WK.size(); ++j)
+      EXPECT_EQ(b.truth.X_WK[j].matrix(), truth.X_WK[j].matrix());
+    ASSERT_EQ(b.results.size(), results.size());
+    for (std::size_t k = 0; k < results.size(); ++k) {
+      EXPECT_EQ(b.results[k].nodes, results[k].nodes);
+      EXPECT_EQ(b.scores[k].mean_err, scores[k].mean_err);
+    }
+    moved += b.truth_motion > 0;
+  }
+  EXPECT_GT(moved, 0);  // the pusher moves the link: the frames are not all one truth
+  EXPECT_EQ(replayed.recording(), physics);
+
+  EpisodeOptions longer = replay;
+  longer.frames = 13;
+  EXPECT_EQ(test::error_of([&] { Episode e(scene, longer); }),
+            "episode: the physics recording has 12 frames at 30 fps; this episode needs 13 at 30");
+  const Scene faster = load_scene(kScenes / "default.yaml", {"camera.fps=60"});
+  EXPECT_EQ(test::error_of([&] { Episode e(faster, replay); }),
+            "episode: the physics recording has 12 frames at 30 fps; this episode needs 12 at 60");
+}
+
 // tracker.base_prior: each frame's trackers get the true base pose (ball 0's centre at its
 // origin) times one error drawn per episode from the seed, about σ in size.
 TEST(Episode, BasePriorIsTheTrueBasePoseWithOneSeededErrorPerEpisode) {

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "linksight/io/error.hpp"
+#include "linksight/sim/episode.hpp"
 #include "linksight/sim/sweep.hpp"
 #include "test_support.hpp"
 
@@ -54,6 +55,25 @@ TEST(SweepAxis, ParsesAndNamesBadArguments) {
   EXPECT_EQ(test::error_of([] { (void)parse_axis("noise.scale=1,,2"); }),
             "--axis 'noise.scale=1,,2': empty value");
   EXPECT_EQ(test::error_of([] { (void)parse_axis("=1"); }), "--axis '=1': expected key=v1,v2,...");
+}
+
+// Only axes under keys the world never reads let a sweep's cells share one physics run; a
+// key that merely begins like one (noiseless) does not count.
+TEST(SweepSpec, SharesTheWorldOnlyWhereNoAxisMovesIt) {
+  SweepSpec s = tiny();
+  EXPECT_TRUE(shares_world(s));
+  for (const char* key : {"seed", "noise.axial.a_m", "occlusion.fraction", "occlusion.at",
+                          "occluders[0].reflectance", "background.table.height_m",
+                          "segmentation.mode", "tracker.mode", "external.timeout_s"}) {
+    s.axes = {parse_axis(std::string(key) + "=1,2")};
+    EXPECT_TRUE(shares_world(s)) << key;
+  }
+  for (const char* key : {"chain.friction", "world.dt_s", "camera.fps", "duration_s",
+                          "base.waypoints[0].t_s", "actions.pushers[0].radius_m", "noiseless",
+                          "seeds", "tracker_x"}) {
+    s.axes = {parse_axis("noise.scale=0,1"), parse_axis(std::string(key) + "=1,2")};
+    EXPECT_FALSE(shares_world(s)) << key;
+  }
 }
 
 TEST(SweepSpec, ValidateNamesTheProblem) {
@@ -114,6 +134,24 @@ TEST(SweepGrid, ReadsAxesAndNamesTheLineOfAProblem) {
 
 // The point of sharding: shards run anywhere, in any order, merge into exactly the table
 // one process writes.
+// Cells that replay the first cell's physics (what `sweep` does where shares_world) give
+// the rows each gives alone, bit for bit but for the wall times.
+TEST_F(Sweep, CellsThatShareTheWorldGiveTheirOwnRows) {
+  SweepSpec spec = tiny();
+  spec.axes = {parse_axis("noise.scale=0.5,2"), parse_axis("occlusion.fraction=0,0.3")};
+  spec.frames = 4;
+  ASSERT_TRUE(shares_world(spec));
+  SweepShared shared;
+  for (std::size_t c = 0; c < spec.cells(); ++c) {
+    const std::vector<SweepRow> together = run_cell(spec, c, 0, nullptr, &shared);
+    ASSERT_NE(shared.physics, nullptr);  // recorded by the first cell, replayed after
+    const std::vector<SweepRow> alone = run_cell(spec, c, 0);
+    ASSERT_EQ(together.size(), alone.size());
+    for (std::size_t k = 0; k < alone.size(); ++k) EXPECT_EQ(together[k].values, alone[k].values);
+  }
+  EXPECT_EQ(shared.physics->frames.size(), 4u);
+}
+
 TEST_F(Sweep, MergedShardsEqualOneProcessByteForByte) {
   const SweepSpec spec = tiny();
   run_shard(dir / "whole", spec, 0, 1);

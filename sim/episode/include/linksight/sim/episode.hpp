@@ -16,6 +16,16 @@
 
 namespace linksight::sim {
 
+/// The world's truth at every camera frame of one episode, for another episode of the
+/// same physics to replay instead of stepping Bullet again (the cells of a sweep whose
+/// axes leave the world alone, sweep.hpp's shares_world). Each frame is a copy of what
+/// the world gave, so a replay's frames, tracks and scores are the recorded episode's
+/// physics bit for bit.
+struct PhysicsRecording {
+  double fps = 0;            ///< the camera's frame rate it was sampled at [1/s]
+  std::vector<Truth> frames; ///< frame f at t = f / fps
+};
+
 struct EpisodeOptions {
   int frames = 0;  ///< camera frames to run; 0: the scene's duration
   /// Tracker modes to compare on the same frames; empty: the scene's own mode. Each runs
@@ -42,6 +52,12 @@ struct EpisodeOptions {
   /// Frames rendered whole even so, e.g. those written out as figures.
   std::vector<int> whole_frames;
   ScoreParams score;
+  /// Replay this recording's truth instead of running the world (nullptr: run it). The
+  /// caller vouches that the scene's chain, world, base and actions are the recorded
+  /// episode's; the episode checks the frame rate and that every frame is there.
+  std::shared_ptr<const PhysicsRecording> replay;
+  /// Keep every frame's truth, for recording() after the last frame (about 2 kB a frame).
+  bool record = false;
   void validate() const;  ///< throws std::invalid_argument naming the field
 };
 
@@ -101,6 +117,9 @@ class Episode {
   void stop_external();
   /// Per compared tracker (names()), over the frames run so far.
   [[nodiscard]] std::vector<EpisodeSummary> summaries() const;
+  /// Once every frame has run: the truth of each, recorded (options.record) or replayed
+  /// (options.replay); otherwise nullptr.
+  [[nodiscard]] std::shared_ptr<const PhysicsRecording> recording() const;
 
  private:
   const EpisodeFrame& step_frame();

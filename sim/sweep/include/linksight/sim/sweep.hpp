@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -19,6 +20,8 @@
 #include "linksight/tracker/tracker.hpp"
 
 namespace linksight::sim {
+
+struct PhysicsRecording;  // episode.hpp
 
 /// One axis: a scene key (as for --set; `scene` takes scene files) and its values.
 struct SweepAxis {
@@ -86,12 +89,28 @@ struct SweepRow {
   std::string lost_note;
 };
 
+/// Whether every cell of the sweep has the same physics: each axis key lies under `seed`,
+/// `noise`, `occlusion`, `occluders`, `background`, `segmentation`, `tracker` or
+/// `external`, which the sensor, the cloud and the trackers read and the world does not
+/// (make_world: chain, world, base, actions; the frame times: camera). Its cells may then
+/// replay one cell's physics (SweepShared).
+[[nodiscard]] bool shares_world(const SweepSpec& spec);
+
+/// What the cells one process runs share: where shares_world(spec), the first cell's
+/// physics, which the others replay (PhysicsRecording) instead of stepping Bullet again,
+/// with the same rows bit for bit.
+struct SweepShared {
+  std::shared_ptr<const PhysicsRecording> physics;
+};
+
 /// Runs one cell's episode (sensor threads: 0 = OpenMP default; results do not depend
 /// on it). Throws io::InputError for a bad scene or override, naming it, and
 /// ExternalTrackerError when an external tracker dies or hangs (the cell failed).
+/// `shared` (optional): kept from cell to cell of one sweep (see SweepShared).
 [[nodiscard]] std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index,
                                              int threads,
-                                             const std::atomic<bool>* cancel = nullptr);
+                                             const std::atomic<bool>* cancel = nullptr,
+                                             SweepShared* shared = nullptr);
 
 /// The cells shard `shard` of `count` runs: those with index % count == shard.
 [[nodiscard]] std::vector<std::size_t> shard_cells(const SweepSpec& spec, int shard, int count);
