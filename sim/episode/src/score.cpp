@@ -126,73 +126,74 @@ EpisodeScorer::EpisodeScorer(const ScoreParams& params) : params_(params) { para
 
 void EpisodeScorer::add(const FrameScore& score, double sdf, bool reinit, double time_s,
                         double occluded_fraction, double truth_motion, long non_finite_nodes) {
-  rows_.push_back({score.mean_err, sdf, score.polyline, time_s, occluded_fraction, score.swaps,
-                   score.misassigned, non_finite_nodes, reinit,
-                   occluded_fraction >= params_.occlusion_from,
-                   truth_motion >= params_.fast_motion_from});
+  EpisodeSummary& s = sums_;
+  const int f = s.frames++;
+  time_.push_back(static_cast<float>(time_s));
+  s.reinit_count += reinit;
+  occluded_sum_ += occluded_fraction;
+  s.occluded_fraction_max = std::max(s.occluded_fraction_max, occluded_fraction);
+  s.non_finite_nodes += non_finite_nodes;
+  // Events: maximal runs of flagged frames, each kind on its own; a run ends at the first
+  // frame without its flag, which is the first that may recover from it.
+  const bool flagged[2] = {occluded_fraction >= params_.occlusion_from,
+                           truth_motion >= params_.fast_motion_from};
+  for (int kind = 0; kind < 2; ++kind) {
+    if (flagged[kind]) {
+      if (run_start_[kind] < 0) run_start_[kind] = f;
+    } else if (run_start_[kind] >= 0) {
+      Event e;
+      e.kind = kind == 0 ? Event::Kind::occlusion : Event::Kind::fast_motion;
+      e.start = run_start_[kind];
+      e.end = f;
+      events_[kind].push_back(e);
+      pending_.emplace_back(kind, events_[kind].size() - 1);
+      run_start_[kind] = -1;
+    }
+  }
+  if (score.mean_err < params_.recovered_below) {  // NaN (lost) is not recovered
+    for (const auto& [kind, i] : pending_) {
+      Event& e = events_[kind][i];
+      e.frames_to_recover = f - e.end;
+    }
+    pending_.clear();
+  }
+  if (!std::isfinite(score.mean_err)) {
+    ++s.lost_frames;
+    return;
+  }
+  err_.push_back(score.mean_err);
+  s.under_2mm += score.mean_err < 0.002;
+  s.under_5mm += score.mean_err < 0.005;
+  s.swaps += score.swaps;
+  s.swap_frames += score.swaps > 0;
+  s.misassigned += score.misassigned;
+  if (std::isfinite(sdf)) sdf_sum_ += sdf, ++n_sdf_;
+  if (std::isfinite(score.polyline)) poly_sum_ += score.polyline, ++n_poly_;
 }
 
 EpisodeSummary EpisodeScorer::summary() const {
-  EpisodeSummary s;
-  s.frames = static_cast<int>(rows_.size());
-  std::vector<double> err, time;
-  double sdf = 0, poly = 0;
-  int n_sdf = 0, n_poly = 0;
-  double occluded_sum = 0;
-  for (const Row& r : rows_) {
-    time.push_back(r.time_s);
-    s.reinit_count += r.reinit;
-    occluded_sum += r.occluded_fraction;
-    s.occluded_fraction_max = std::max(s.occluded_fraction_max, r.occluded_fraction);
-    s.non_finite_nodes += r.non_finite;
-    if (!std::isfinite(r.mean_err)) {
-      ++s.lost_frames;
-      continue;
-    }
-    err.push_back(r.mean_err);
-    s.under_2mm += r.mean_err < 0.002;
-    s.under_5mm += r.mean_err < 0.005;
-    s.swaps += r.swaps;
-    s.swap_frames += r.swaps > 0;
-    s.misassigned += r.misassigned;
-    if (std::isfinite(r.sdf)) sdf += r.sdf, ++n_sdf;
-    if (std::isfinite(r.polyline)) poly += r.polyline, ++n_poly;
-  }
+  EpisodeSummary s = sums_;
   if (s.frames > 0) {
     s.under_2mm /= s.frames;
     s.under_5mm /= s.frames;
-    s.occluded_fraction_mean = occluded_sum / s.frames;
+    s.occluded_fraction_mean = occluded_sum_ / s.frames;
   }
-  if (n_sdf) s.mean_sdf = sdf / n_sdf;
-  if (n_poly) s.mean_polyline = poly / n_poly;
-  s.node_err = Stats::of(err);
-  s.time = Stats::of(time);
-  // Events: maximal runs of flagged frames, each kind on its own.
-  for (const Event::Kind kind : {Event::Kind::occlusion, Event::Kind::fast_motion}) {
-    auto flagged = [&](int f) {
-      return kind == Event::Kind::occlusion ? rows_[f].occluded : rows_[f].fast;
-    };
-    for (int f = 0; f < s.frames;) {
-      if (!flagged(f)) {
-        ++f;
-        continue;
-      }
+  if (n_sdf_) s.mean_sdf = sdf_sum_ / n_sdf_;
+  if (n_poly_) s.mean_polyline = poly_sum_ / n_poly_;
+  s.node_err = Stats::of(err_);
+  s.time = Stats::of(std::vector<double>(time_.begin(), time_.end()));
+  for (int kind = 0; kind < 2; ++kind) {
+    s.events.insert(s.events.end(), events_[kind].begin(), events_[kind].end());
+    if (run_start_[kind] >= 0) {  // still running at the last frame: not recovered
       Event e;
-      e.kind = kind;
-      e.start = f;
-      while (f < s.frames && flagged(f)) ++f;
-      e.end = f;
-      for (int g = e.end; g < s.frames; ++g) {
-        if (rows_[g].mean_err < params_.recovered_below) {  // NaN (lost) is not recovered
-          e.frames_to_recover = g - e.end;
-          break;
-        }
-      }
+      e.kind = kind == 0 ? Event::Kind::occlusion : Event::Kind::fast_motion;
+      e.start = run_start_[kind];
+      e.end = s.frames;
       s.events.push_back(e);
     }
   }
   std::stable_sort(s.events.begin(), s.events.end(),
-            [](const Event& a, const Event& b) { return a.start < b.start; });
+                   [](const Event& a, const Event& b) { return a.start < b.start; });
   return s;
 }
 

@@ -135,7 +135,8 @@ TEST(Score, EpisodeEventsAndRecovery) {
   EXPECT_DOUBLE_EQ(sum.under_5mm, 0.4);
   EXPECT_NEAR(sum.node_err.max, 0.030, kTol);
   EXPECT_NEAR(sum.node_err.median, 0.006, kTol);
-  EXPECT_NEAR(sum.time.max, 0.010, kTol);
+  // Times are kept as float (a wall clock's, 12 bytes a frame with the error's double).
+  EXPECT_FLOAT_EQ(static_cast<float>(sum.time.max), 0.010f);
   ASSERT_EQ(sum.events.size(), 2u);
   EXPECT_EQ(sum.events[0].kind, Event::Kind::occlusion);
   EXPECT_EQ(sum.events[0].start, 3);
@@ -144,6 +145,33 @@ TEST(Score, EpisodeEventsAndRecovery) {
   EXPECT_EQ(sum.events[1].kind, Event::Kind::fast_motion);
   EXPECT_EQ(sum.events[1].start, 8);
   EXPECT_EQ(sum.events[1].frames_to_recover, -1);  // frame 9 is lost
+}
+
+// A summary before the last frame: an event still running ends at the frames so far,
+// unrecovered; the scorer goes on, and the event then ends and recovers as it would have.
+TEST(Score, SummaryMidEpisodeEndsTheRunningEventThere) {
+  EpisodeScorer scorer;
+  const auto add = [&](double err_mm, double occluded) {
+    FrameScore s;
+    s.mean_err = err_mm * 1e-3;
+    scorer.add(s, 0.001, false, 1e-3, occluded, 0);
+  };
+  add(1, 0);
+  add(20, 0.5);
+  add(30, 0.5);
+  EpisodeSummary mid = scorer.summary();
+  ASSERT_EQ(mid.events.size(), 1u);
+  EXPECT_EQ(mid.events[0].start, 1);
+  EXPECT_EQ(mid.events[0].end, 3);
+  EXPECT_EQ(mid.events[0].frames_to_recover, -1);
+  add(9, 0);  // the board is gone, the error not yet back
+  add(2, 0);
+  const EpisodeSummary end = scorer.summary();
+  ASSERT_EQ(end.events.size(), 1u);
+  EXPECT_EQ(end.events[0].end, 3);
+  EXPECT_EQ(end.events[0].frames_to_recover, 1);
+  EXPECT_EQ(end.frames, 5);
+  EXPECT_NEAR(end.node_err.max, 0.030, kTol);
 }
 
 TEST(Score, BadParametersAreNamed) {

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "linksight/tracker/cloud.hpp"
@@ -117,8 +118,9 @@ struct EpisodeMetric {
 /// non_finite_nodes. (Timing is not among them: it differs run to run.)
 [[nodiscard]] std::vector<EpisodeMetric> episode_metrics(const EpisodeSummary& s);
 
-/// Accumulates an episode frame by frame. Holds a few numbers per frame (not clouds or
-/// images), so a long episode costs 64 bytes a frame.
+/// Accumulates an episode frame by frame: counts, sums and events as the frames come, and
+/// of each frame only what the exact quantiles need, its mean node error (8 bytes) and its
+/// time (4), so a long episode costs 12 bytes a frame.
 class EpisodeScorer {
  public:
   explicit EpisodeScorer(const ScoreParams& params = {});  ///< validates params
@@ -127,17 +129,23 @@ class EpisodeScorer {
   /// previous frame [m], and how many output nodes were not finite.
   void add(const FrameScore& score, double sdf, bool reinit, double time_s,
            double occluded_fraction, double truth_motion, long non_finite_nodes = 0);
+  /// Over the frames added so far (an event still running ends at the last of them).
   [[nodiscard]] EpisodeSummary summary() const;
 
  private:
-  struct Row {
-    double mean_err, sdf, polyline, time_s, occluded_fraction;
-    int swaps, misassigned;
-    long non_finite;
-    bool reinit, occluded, fast;
-  };
   ScoreParams params_;
-  std::vector<Row> rows_;
+  EpisodeSummary sums_;  // counts and maxima; the sums and quantiles below
+  std::vector<double> err_;  // tracked frames' mean node error, in frame order
+  std::vector<float> time_;  // every frame's tracker time [s]: a wall clock's, never exact
+  double occluded_sum_ = 0, sdf_sum_ = 0, poly_sum_ = 0;
+  int n_sdf_ = 0, n_poly_ = 0;
+  // Per Event::Kind: the ended runs in start order, and the start of the one running
+  // (-1: none).
+  std::vector<Event> events_[2];
+  int run_start_[2] = {-1, -1};
+  // Ended runs not yet recovered from (kind, index in events_): the first frame under
+  // recovered_below recovers them all.
+  std::vector<std::pair<int, std::size_t>> pending_;
 };
 
 }  // namespace linksight::sim
