@@ -247,8 +247,9 @@ TEST(Robustness, Bands) {
   std::printf("%-34s %-16s %6s %6s %8s %8s %8s %6s %6s %6s %8s\n", "cell", "mode", "noise",
               "occl", "err_mm", "worst_mm", "sdf_mm", "swaps", "slips", "recov", "occl_in");
   int cells_with_events = 0;
-  ASSERT_TRUE(shares_world(spec)) << "a grid axis moves the world: each cell its own physics";
-  SweepShared shared;
+  // One physics for the grid's cells, unless an axis moves the world (a grid of your own).
+  SweepShared shared_world;
+  SweepShared* const shared = shares_world(spec) ? &shared_world : nullptr;
   for (std::size_t i = 0; i < spec.cells(); ++i) {
     const SweepCell cell = sweep_cell(spec, i);
     const Scene scene = sweep_cell_scene(spec, i);
@@ -257,7 +258,7 @@ TEST(Robustness, Bands) {
     std::string name = scene_file + " at=" + at;
     for (std::size_t k = 0; k < spec.axes.size(); ++k)
       name += " " + spec.axes[k].key + "=" + cell.values[k];
-    const CellResult result = run(scene, modes, {}, &shared);
+    const CellResult result = run(scene, modes, {}, shared);
     const std::vector<ModeResult>& r = result.modes;
     {
       SCOPED_TRACE(name);
@@ -310,8 +311,9 @@ TEST(Robustness, ChainFitWithBasePrior) {
   const std::string& at = suite.at;
   const SweepSpec spec = suite.spec({"tracker.base_prior.enabled=true"});
   const TrackerMode chain_fit = parse_mode("chain-fit");
-  ASSERT_TRUE(shares_world(spec)) << "a grid axis moves the world: each cell its own physics";
-  SweepShared shared;
+  // One physics for the grid's cells, unless an axis moves the world (a grid of your own).
+  SweepShared shared_world;
+  SweepShared* const shared = shares_world(spec) ? &shared_world : nullptr;
   int cells = 0;
   for (std::size_t i = 0; i < spec.cells(); ++i) {
     const SweepCell cell = sweep_cell(spec, i);
@@ -328,7 +330,7 @@ TEST(Robustness, ChainFitWithBasePrior) {
     ASSERT_TRUE(std::isfinite(noise) && std::isfinite(occl)) << "the grid lacks an axis";
     if (noise > kChainFitMaxNoise || occl > kChainFitMaxHidden) continue;
     ++cells;
-    const ModeResult mr = run(scene, {chain_fit}, {}, &shared).modes[0];
+    const ModeResult mr = run(scene, {chain_fit}, {}, shared).modes[0];
     std::printf("%-34s %-16s %6.2f %6.2f %8.2f %8.2f %8.2f %6d %6d %6d\n",
                 ("cell " + std::to_string(i)).c_str(), "chain-fit+prior", noise, occl,
                 mr.before * 1e3, mr.worst * 1e3, mr.sdf_before * 1e3, mr.swaps, mr.misassigned,
@@ -363,8 +365,9 @@ TEST(Robustness, ExternalTracker) {
       << "LINKSIGHT_ROBUSTNESS_BANDS = " << bands << ": chain-fit or paper";
   const SweepSpec spec = suite.spec();
   const bool moving = suite.scene_file.find("moving") != std::string::npos;
-  ASSERT_TRUE(shares_world(spec)) << "a grid axis moves the world: each cell its own physics";
-  SweepShared shared;
+  // One physics for the grid's cells, unless an axis moves the world (a grid of your own).
+  SweepShared shared_world;
+  SweepShared* const shared = shares_world(spec) ? &shared_world : nullptr;
   int cells = 0;
   for (std::size_t i = 0; i < spec.cells(); ++i) {
     const SweepCell cell = sweep_cell(spec, i);
@@ -376,7 +379,7 @@ TEST(Robustness, ExternalTracker) {
       if (spec.axes[k].key == "occlusion.fraction") occl = std::stod(cell.values[k]);
     }
     ASSERT_TRUE(std::isfinite(noise) && std::isfinite(occl)) << "the grid lacks an axis";
-    const ModeResult mr = run(sweep_cell_scene(spec, i), {}, {spec_t}, &shared).modes.back();
+    const ModeResult mr = run(sweep_cell_scene(spec, i), {}, {spec_t}, shared).modes.back();
     std::printf("%-34s %-16s %6.2f %6.2f %8.2f %8.2f %8.2f %6d %6d %6d\n",
                 ("cell " + std::to_string(i)).c_str(), spec_t.name.c_str(), noise, occl,
                 mr.before * 1e3, mr.worst * 1e3, mr.sdf_before * 1e3, mr.swaps, mr.misassigned,

@@ -112,6 +112,11 @@ Episode::Episode(const Scene& scene, const EpisodeOptions& options)
           "episode: the physics recording has " + std::to_string(r.frames.size()) +
           " frames at " + format_shortest(r.fps) + " fps; this episode needs " +
           std::to_string(m.frames) + " at " + format_shortest(scene.camera.fps));
+    const auto nodes = static_cast<std::size_t>(scene.chain.geometry.count) + 1;
+    if (!r.frames.empty() && r.frames[0].nodes_W.size() != nodes)
+      throw std::invalid_argument("episode: the physics recording has a chain of " +
+                                  std::to_string(r.frames[0].nodes_W.size()) +
+                                  " nodes; this scene's has " + std::to_string(nodes));
     m.replay = options.replay;
   } else {
     m.world = make_world(scene);

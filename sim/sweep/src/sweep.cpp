@@ -286,7 +286,8 @@ std::vector<SweepRow> run_cell(const SweepSpec& spec, std::size_t index, int thr
   o.cancel = cancel;
   o.threads = threads;
   o.chain_only_images = true;  // a cell writes numbers only, never an image
-  const bool share = shared != nullptr && shares_world(spec);
+  const bool share = shared != nullptr && shares_world(spec) &&
+                     camera_frames(scene, spec.frames) <= kMaxSharedPhysicsFrames;
   if (share) {
     o.replay = shared->physics;
     o.record = o.replay == nullptr;

@@ -184,6 +184,12 @@ TEST(Episode, ReplayedPhysicsGivesTheSameFramesAsTheWorld) {
   longer.frames = 13;
   EXPECT_EQ(test::error_of([&] { Episode e(scene, longer); }),
             "episode: the physics recording has 12 frames at 30 fps; this episode needs 13 at 30");
+  auto other_chain = std::make_shared<PhysicsRecording>(*physics);
+  for (Truth& t : other_chain->frames) t.nodes_W.resize(5);
+  EpisodeOptions other = replay;
+  other.replay = other_chain;
+  EXPECT_EQ(test::error_of([&] { Episode e(scene, other); }),
+            "episode: the physics recording has a chain of 5 nodes; this scene's has 12");
   const Scene faster = load_scene(kScenes / "default.yaml", {"camera.fps=60"});
   EXPECT_EQ(test::error_of([&] { Episode e(faster, replay); }),
             "episode: the physics recording has 12 frames at 30 fps; this episode needs 12 at 60");

@@ -4,6 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
+#include <string>
+#include <tuple>
+#include <vector>
 
 #include "linksight/sim/score.hpp"
 
@@ -172,6 +176,150 @@ TEST(Score, SummaryMidEpisodeEndsTheRunningEventThere) {
   EXPECT_EQ(end.events[0].frames_to_recover, 1);
   EXPECT_EQ(end.frames, 5);
   EXPECT_NEAR(end.node_err.max, 0.030, kTol);
+}
+
+// The scorer as it was before it streamed (it kept every frame's row and read them at the
+// end): the reference the streaming one must reproduce.
+struct BatchScorer {
+  struct Row {
+    double mean_err, sdf, polyline, time_s, occluded_fraction;
+    int swaps, misassigned;
+    long non_finite;
+    bool reinit, occluded, fast;
+  };
+  ScoreParams params;
+  std::vector<Row> rows;
+  void add(const FrameScore& score, double sdf, bool reinit, double time_s, double occluded,
+           double motion, long non_finite) {
+    rows.push_back({score.mean_err, sdf, score.polyline, time_s, occluded, score.swaps,
+                    score.misassigned, non_finite, reinit, occluded >= params.occlusion_from,
+                    motion >= params.fast_motion_from});
+  }
+  EpisodeSummary summary() const {
+    EpisodeSummary s;
+    s.frames = static_cast<int>(rows.size());
+    std::vector<double> err, time;
+    double sdf = 0, poly = 0, occluded_sum = 0;
+    int n_sdf = 0, n_poly = 0;
+    for (const Row& r : rows) {
+      time.push_back(r.time_s);
+      s.reinit_count += r.reinit;
+      occluded_sum += r.occluded_fraction;
+      s.occluded_fraction_max = std::max(s.occluded_fraction_max, r.occluded_fraction);
+      s.non_finite_nodes += r.non_finite;
+      if (!std::isfinite(r.mean_err)) {
+        ++s.lost_frames;
+        continue;
+      }
+      err.push_back(r.mean_err);
+      s.under_2mm += r.mean_err < 0.002;
+      s.under_5mm += r.mean_err < 0.005;
+      s.swaps += r.swaps;
+      s.swap_frames += r.swaps > 0;
+      s.misassigned += r.misassigned;
+      if (std::isfinite(r.sdf)) sdf += r.sdf, ++n_sdf;
+      if (std::isfinite(r.polyline)) poly += r.polyline, ++n_poly;
+    }
+    if (s.frames > 0) {
+      s.under_2mm /= s.frames;
+      s.under_5mm /= s.frames;
+      s.occluded_fraction_mean = occluded_sum / s.frames;
+    }
+    if (n_sdf) s.mean_sdf = sdf / n_sdf;
+    if (n_poly) s.mean_polyline = poly / n_poly;
+    s.node_err = Stats::of(err);
+    s.time = Stats::of(time);
+    for (const Event::Kind kind : {Event::Kind::occlusion, Event::Kind::fast_motion}) {
+      auto flagged = [&](int f) { return kind == Event::Kind::occlusion ? rows[f].occluded : rows[f].fast; };
+      for (int f = 0; f < s.frames;) {
+        if (!flagged(f)) {
+          ++f;
+          continue;
+        }
+        Event e;
+        e.kind = kind;
+        e.start = f;
+        while (f < s.frames && flagged(f)) ++f;
+        e.end = f;
+        for (int g = e.end; g < s.frames; ++g)
+          if (rows[g].mean_err < params.recovered_below) {
+            e.frames_to_recover = g - e.end;
+            break;
+          }
+        s.events.push_back(e);
+      }
+    }
+    std::stable_sort(s.events.begin(), s.events.end(),
+                     [](const Event& a, const Event& b) { return a.start < b.start; });
+    return s;
+  }
+};
+
+// Bit for bit (NaN for NaN) where both are NaN.
+void expect_same(double a, double b, const char* what) {
+  if (std::isnan(a) && std::isnan(b)) return;
+  EXPECT_EQ(a, b) << what;
+}
+
+// The streaming scorer gives the batch scorer's summary, every field bit for bit, after
+// every frame of seeded random episodes: lost frames, overlapping occlusion and
+// fast-motion runs, runs still going at the end, recoveries on the frame a run ends.
+TEST(Score, StreamingEqualsTheBatchScorerAfterEveryFrame) {
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int episode = 0; episode < 20; ++episode) {
+    EpisodeScorer streaming;
+    BatchScorer batch;
+    const int frames = 1 + static_cast<int>(u(rng) * 150);
+    for (int f = 0; f < frames; ++f) {
+      FrameScore sc;
+      const double x = u(rng);
+      sc.mean_err = x < 0.1 ? std::nan("") : 0.012 * u(rng);
+      sc.polyline = u(rng) < 0.1 ? std::nan("") : 0.01 * u(rng);
+      sc.swaps = u(rng) < 0.1 ? 1 + static_cast<int>(3 * u(rng)) : 0;
+      sc.misassigned = u(rng) < 0.1 ? 2 : 0;
+      const double sdf = u(rng) < 0.1 ? std::nan("") : 0.002 * u(rng);
+      const bool reinit = u(rng) < 0.05;
+      const double time = std::floor(u(rng) * 4096) / 1024.0;  // exact in a float
+      const double occluded = u(rng) < 0.3 ? 0.2 + 0.5 * u(rng) : 0.2 * u(rng);
+      const double motion = u(rng) < 0.2 ? 0.02 + 0.02 * u(rng) : 0.02 * u(rng);
+      const long non_finite = u(rng) < 0.05 ? 1 : 0;
+      streaming.add(sc, sdf, reinit, time, occluded, motion, non_finite);
+      batch.add(sc, sdf, reinit, time, occluded, motion, non_finite);
+      const EpisodeSummary a = streaming.summary(), b = batch.summary();
+      SCOPED_TRACE("episode " + std::to_string(episode) + ", frame " + std::to_string(f));
+      EXPECT_EQ(a.frames, b.frames);
+      EXPECT_EQ(a.lost_frames, b.lost_frames);
+      EXPECT_EQ(a.reinit_count, b.reinit_count);
+      EXPECT_EQ(a.swaps, b.swaps);
+      EXPECT_EQ(a.swap_frames, b.swap_frames);
+      EXPECT_EQ(a.misassigned, b.misassigned);
+      EXPECT_EQ(a.non_finite_nodes, b.non_finite_nodes);
+      for (const auto& [x1, x2, what] :
+           {std::tuple{a.under_2mm, b.under_2mm, "under_2mm"},
+            std::tuple{a.under_5mm, b.under_5mm, "under_5mm"},
+            std::tuple{a.mean_sdf, b.mean_sdf, "mean_sdf"},
+            std::tuple{a.mean_polyline, b.mean_polyline, "mean_polyline"},
+            std::tuple{a.occluded_fraction_mean, b.occluded_fraction_mean, "occluded mean"},
+            std::tuple{a.occluded_fraction_max, b.occluded_fraction_max, "occluded max"},
+            std::tuple{a.node_err.mean, b.node_err.mean, "err mean"},
+            std::tuple{a.node_err.median, b.node_err.median, "err median"},
+            std::tuple{a.node_err.p95, b.node_err.p95, "err p95"},
+            std::tuple{a.node_err.max, b.node_err.max, "err max"},
+            std::tuple{a.time.mean, b.time.mean, "time mean"},
+            std::tuple{a.time.p95, b.time.p95, "time p95"},
+            std::tuple{a.time.max, b.time.max, "time max"}})
+        expect_same(x1, x2, what);
+      ASSERT_EQ(a.events.size(), b.events.size());
+      for (std::size_t k = 0; k < a.events.size(); ++k) {
+        EXPECT_EQ(a.events[k].kind, b.events[k].kind) << k;
+        EXPECT_EQ(a.events[k].start, b.events[k].start) << k;
+        EXPECT_EQ(a.events[k].end, b.events[k].end) << k;
+        EXPECT_EQ(a.events[k].frames_to_recover, b.events[k].frames_to_recover) << k;
+      }
+      if (HasFailure()) return;
+    }
+  }
 }
 
 TEST(Score, BadParametersAreNamed) {

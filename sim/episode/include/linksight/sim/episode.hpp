@@ -54,7 +54,8 @@ struct EpisodeOptions {
   ScoreParams score;
   /// Replay this recording's truth instead of running the world (nullptr: run it). The
   /// caller vouches that the scene's chain, world, base and actions are the recorded
-  /// episode's; the episode checks the frame rate and that every frame is there.
+  /// episode's (sweep.hpp's shares_world); the episode checks only the frame rate, that
+  /// every frame is there and the chain's node count.
   std::shared_ptr<const PhysicsRecording> replay;
   /// Keep every frame's truth, for recording() after the last frame (about 2 kB a frame).
   bool record = false;
@@ -117,8 +118,8 @@ class Episode {
   void stop_external();
   /// Per compared tracker (names()), over the frames run so far.
   [[nodiscard]] std::vector<EpisodeSummary> summaries() const;
-  /// Once every frame has run: the truth of each, recorded (options.record) or replayed
-  /// (options.replay); otherwise nullptr.
+  /// Once every frame has run: the truth of each, recorded (options.record), or the
+  /// recording replayed (options.replay, which may hold more frames); otherwise nullptr.
   [[nodiscard]] std::shared_ptr<const PhysicsRecording> recording() const;
 
  private:

@@ -96,7 +96,7 @@ struct EpisodeSummary {
   int swaps = 0;              ///< sum of topology swaps over frames
   int swap_frames = 0;        ///< frames with at least one swap
   int misassigned = 0;        ///< sum of misassigned nodes over frames
-  Stats time;                 ///< tracker time per frame [s]
+  Stats time;                 ///< tracker time per frame [s] (each kept as a float)
   std::vector<Event> events;
   double occluded_fraction_mean = kNaN;  ///< of the link, over all frames
   double occluded_fraction_max = 0;      ///< of the link, over all frames

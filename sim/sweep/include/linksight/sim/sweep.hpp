@@ -96,12 +96,16 @@ struct SweepRow {
 /// replay one cell's physics (SweepShared).
 [[nodiscard]] bool shares_world(const SweepSpec& spec);
 
-/// What the cells one process runs share: where shares_world(spec), the first cell's
-/// physics, which the others replay (PhysicsRecording) instead of stepping Bullet again,
-/// with the same rows bit for bit.
+/// What the cells one process runs share: where shares_world(spec), the physics of the
+/// first cell it runs to the end, which the others replay (PhysicsRecording) instead of
+/// stepping Bullet again, with the same rows bit for bit. Not for episodes of more than
+/// kMaxSharedPhysicsFrames frames: a recording keeps about 2.2 kB a frame.
 struct SweepShared {
   std::shared_ptr<const PhysicsRecording> physics;
 };
+/// At most 30,000 frames (about 66 MB) recorded for a sweep's cells to share; a longer
+/// episode runs its own world in every cell.
+inline constexpr int kMaxSharedPhysicsFrames = 30000;
 
 /// Runs one cell's episode (sensor threads: 0 = OpenMP default; results do not depend
 /// on it). Throws io::InputError for a bad scene or override, naming it, and
