@@ -52,6 +52,14 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
                    {"sigma_mm", b.sigma * 1e3}, {"centre", b.centre * unit}});
     return a;
   };
+  auto scales = [](const std::vector<sim::DepthStats::Scale>& v) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const auto& sc : v)
+      a.push_back({{"window_px", sc.window}, {"windows", sc.windows},
+                   {"plane_sigma_mm", sc.sigma * 1e3}, {"quadratic_sigma_mm", sc.sigma_quad * 1e3},
+                   {"quadratic_beats_plane", sc.quad_beats_plane}});
+    return a;
+  };
   auto side = [](const sim::EdgeSide& e) {
     return nlohmann::json{{"edges", e.edges},
                           {"direct_jumps", e.direct},
@@ -69,6 +77,13 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
           {"sigma_by_depth_m", bins(s.sigma_by_depth, 1.0)},
           {"sigma_by_angle_deg", bins(s.sigma_by_angle, kDeg)},
           {"residual_correlation_lag_1_to_4_px", s.correlation},
+          {"residual_correlation_rows_lag_1_to_6_px", s.correlation_rows},
+          {"residual_correlation_columns_lag_1_to_6_px", s.correlation_cols},
+          {"quadratic_sigma_by_angle_deg", bins(s.sigma_quad_by_angle, kDeg)},
+          {"quadratic_beats_plane", s.quad_beats_plane},
+          {"sigma_by_window", scales(s.scales)},
+          {"neighbour_pairs", s.neighbour_pairs},
+          {"neighbour_jumps", s.neighbour_jumps},
           {"edges_near_left", side(s.near_left)},
           {"edges_near_right", side(s.near_right)},
           {"projector_side", s.projector_side},
@@ -143,7 +158,29 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
   os << "plane-fit sigma by incidence (all depths):\n";
   bins(s.sigma_by_angle, kDeg, "deg");
   os << std::setprecision(2) << "residual correlation at 1..4 px: " << s.correlation[0] << " "
-     << s.correlation[1] << " " << s.correlation[2] << " " << s.correlation[3] << "\n\n";
+     << s.correlation[1] << " " << s.correlation[2] << " " << s.correlation[3] << "\n";
+  os << "  along rows at 1..6 px:   ";
+  for (const double c : s.correlation_rows) os << " " << c;
+  os << "\n  along columns at 1..6 px:";
+  for (const double c : s.correlation_cols) os << " " << c;
+  os << "\nquadratic-fit sigma by incidence (all depths):\n";
+  for (const sim::SigmaBin& b : s.sigma_quad_by_angle)
+    if (b.windows > 0)
+      os << "  deg [" << std::setprecision(0) << b.lo * kDeg << ", " << b.hi * kDeg
+         << ")  windows " << std::setw(5) << b.windows << "  sigma_mm " << std::setprecision(2)
+         << b.sigma * 1e3 << "\n";
+  os << "windows where a quadratic's sigma is below " << sim::kQuadBeatsPlane
+     << " x the plane's: " << std::setprecision(0) << 100 * s.quad_beats_plane << "%\n";
+  for (const auto& sc : s.scales)
+    os << "  " << sc.window << "x" << sc.window << " px: " << sc.windows
+       << " windows, median sigma_mm plane " << std::setprecision(2) << sc.sigma * 1e3
+       << ", quadratic " << sc.sigma_quad * 1e3 << ", quadratic below " << sim::kQuadBeatsPlane
+       << " x plane in " << std::setprecision(0) << 100 * sc.quad_beats_plane << "%\n";
+  os << "valid neighbours (rows and columns) more than 20 mm apart: " << s.neighbour_jumps
+     << " of " << s.neighbour_pairs << " pairs (" << std::setprecision(1)
+     << (s.neighbour_pairs ? 1e6 * static_cast<double>(s.neighbour_jumps) / static_cast<double>(s.neighbour_pairs) : 0.0)
+     << " per million)\n\n"
+     << std::setprecision(2);  // what the lines below were written with
   auto side = [&](const char* name, const sim::EdgeSide& e) {
     os << "  " << name << ": " << e.edges << " edges, " << e.direct << " direct jumps, "
        << "first/second pixel past the near surface invalid " << 100 * e.invalid_1px << "% / "

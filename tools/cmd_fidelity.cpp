@@ -83,6 +83,27 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
   bins(r.sigma_by_angle, s.sigma_by_angle, "deg", 180.0 / 3.14159265358979323846, 0);
   out.push_back({"correlation lag 1 px", r.correlation[0], s.correlation[0]});
   out.push_back({"correlation lag 2 px", r.correlation[1], s.correlation[1]});
+  bins(r.sigma_quad_by_angle, s.sigma_quad_by_angle, "quadratic deg", 180.0 / 3.14159265358979323846, 0);
+  for (int l = 0; l < sim::kCorrelationLags; ++l) {
+    const std::string lag = std::to_string(l + 1);
+    out.push_back({"correlation rows lag " + lag + " px", r.correlation_rows[l], s.correlation_rows[l]});
+    out.push_back({"correlation columns lag " + lag + " px", r.correlation_cols[l], s.correlation_cols[l]});
+  }
+  out.push_back({"quadratic beats plane share", r.quad_beats_plane, s.quad_beats_plane});
+  for (std::size_t k = 0; k < r.scales.size() && k < s.scales.size(); ++k) {
+    const std::string w = std::to_string(r.scales[k].window) + " px";
+    out.push_back({"sigma_mm plane, window " + w, r.scales[k].sigma * 1e3, s.scales[k].sigma * 1e3});
+    out.push_back({"sigma_mm quadratic, window " + w, r.scales[k].sigma_quad * 1e3,
+                   s.scales[k].sigma_quad * 1e3});
+    out.push_back({"quadratic beats plane, window " + w, r.scales[k].quad_beats_plane,
+                   s.scales[k].quad_beats_plane});
+  }
+  const auto per_million = [](const sim::DepthStats& d) {
+    return d.neighbour_pairs ? 1e6 * static_cast<double>(d.neighbour_jumps) /
+                                   static_cast<double>(d.neighbour_pairs)
+                             : 0.0;
+  };
+  out.push_back({"neighbour jumps > 20 mm per million", per_million(r), per_million(s)});
   auto side = [&](const sim::EdgeSide& a, const sim::EdgeSide& b, const std::string& which) {
     out.push_back({which + " invalid at 1 px", a.invalid_1px, b.invalid_1px});
     out.push_back({which + " invalid at 2 px", a.invalid_2px, b.invalid_2px});

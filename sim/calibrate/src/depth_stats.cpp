@@ -33,9 +33,19 @@ struct Edge {
   bool first_invalid = false, second_invalid = false;  // 1 and 2 px past the near side
 };
 
-// Correlation sums at lags 1..4, pooled over windows and both directions.
+// Correlation sums at lags 1..4, pooled over windows and both directions; and per
+// direction at lags 1..kCorrelationLags.
 struct CorrelationSums {
   std::array<double, 4> ab{}, aa{}, bb{};
+  struct Direction {
+    std::array<double, kCorrelationLags> ab{}, aa{}, bb{};
+    [[nodiscard]] std::array<double, kCorrelationLags> correlation() const {
+      std::array<double, kCorrelationLags> c{};
+      for (int l = 0; l < kCorrelationLags; ++l)
+        c[l] = aa[l] > 0 && bb[l] > 0 ? ab[l] / std::sqrt(aa[l] * bb[l]) : 0;
+      return c;
+    }
+  } rows, cols;
 };
 
 class Frame {
@@ -46,9 +56,10 @@ class Frame {
   [[nodiscard]] bool valid(int u, int v) const { return img_.data[idx(u, v)] != 0; }
   [[nodiscard]] double z(int u, int v) const { return img_.data[idx(u, v)] * K_.depth_scale; }
 
-  // Plane fits over non-overlapping windows.
-  void windows(std::vector<DepthStats::Window>& out, CorrelationSums& corr) const {
-    const int n = p_.window;
+  // Plane fits over non-overlapping windows of n x n px, each with at least min_valid
+  // valid pixels; the residual correlation into `corr` when given.
+  void windows(int n, int min_valid, std::vector<DepthStats::Window>& out,
+               CorrelationSums* corr) const {
     std::vector<double> r(static_cast<std::size_t>(n * n));
     std::vector<char> ok(static_cast<std::size_t>(n * n));
     for (int v0 = 0; v0 + n <= H_; v0 += n) {
@@ -75,7 +86,7 @@ class Frame {
             zs.push_back(zz);
             ++count;
           }
-        if (count < p_.min_valid) continue;
+        if (count < min_valid) continue;
         // Axial residuals of z = c0 + c1 du + c2 dv: the noise along the optical axis.
         const Eigen::Vector3d c = A.ldlt().solve(b);
         double ss = 0, worst = 0;
@@ -106,33 +117,43 @@ class Frame {
             qb += e * z(u0 + i, v0 + j);
           }
         const Eigen::Matrix<double, 6, 1> qc = Q.ldlt().solve(qb);
+        double ss_quad = 0;
         for (int j = 0; j < n; ++j)
           for (int i = 0; i < n; ++i) {
             const std::size_t k = static_cast<std::size_t>(j * n + i);
-            if (ok[k]) r[k] = z(u0 + i, v0 + j) - basis(i, j).dot(qc);
+            if (!ok[k]) continue;
+            r[k] = z(u0 + i, v0 + j) - basis(i, j).dot(qc);
+            ss_quad += r[k] * r[k];
           }
         mean3 /= count;
         cov3 = cov3 / count - mean3 * mean3.transpose();
         const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov3);
         const Eigen::Vector3d normal = es.eigenvectors().col(0);  // smallest eigenvalue
         const double cos_t = std::abs(normal.dot(mean3.normalized()));
-        out.push_back({median(zs), std::acos(std::min(1.0, cos_t)), std::sqrt(ss / (count - 3))});
+        out.push_back({median(zs), std::acos(std::min(1.0, cos_t)), std::sqrt(ss / (count - 3)),
+                       // (a window of 6 px or fewer has no quadratic residual: its plane's)
+                       count > 6 ? std::sqrt(ss_quad / (count - 6)) : std::sqrt(ss / (count - 3))});
         // Correlation on windows seen nearly face-on only: on a slanted surface the lateral
         // noise adds depth noise of its own, white, which would dilute the reading.
-        if (out.back().angle >= p_.depth_bin_max_angle) continue;
-        for (int lag = 1; lag <= 4 && lag < n; ++lag)
+        if (corr == nullptr || out.back().angle >= p_.depth_bin_max_angle) continue;
+        for (int lag = 1; lag <= kCorrelationLags && lag < n; ++lag)
           for (int j = 0; j < n; ++j)
             for (int i = 0; i < n; ++i) {
               const std::size_t k = static_cast<std::size_t>(j * n + i);
               if (!ok[k]) continue;
-              const auto add = [&](std::size_t k2) {
+              const auto add = [&](std::size_t k2, CorrelationSums::Direction& d) {
                 if (!ok[k2]) return;
-                corr.ab[lag - 1] += r[k] * r[k2];
-                corr.aa[lag - 1] += r[k] * r[k];
-                corr.bb[lag - 1] += r[k2] * r[k2];
+                const double ab = r[k] * r[k2], aa = r[k] * r[k], bb = r[k2] * r[k2];
+                d.ab[lag - 1] += ab;
+                d.aa[lag - 1] += aa;
+                d.bb[lag - 1] += bb;
+                if (lag > 4) return;
+                corr->ab[lag - 1] += ab;
+                corr->aa[lag - 1] += aa;
+                corr->bb[lag - 1] += bb;
               };
-              if (i + lag < n) add(k + static_cast<std::size_t>(lag));
-              if (j + lag < n) add(k + static_cast<std::size_t>(lag * n));
+              if (i + lag < n) add(k + static_cast<std::size_t>(lag), corr->rows);
+              if (j + lag < n) add(k + static_cast<std::size_t>(lag * n), corr->cols);
             }
       }
     }
@@ -321,6 +342,9 @@ void DepthStatsParams::validate() const {
   if (!(edge_jump > 0)) bad("edge_jump", "must be > 0 m");
   if (max_band_px < 1) bad("max_band_px", "must be >= 1");
   if (max_hole_px < 1) bad("max_hole_px", "must be >= 1");
+  for (const int n : scale_windows)
+    if (n < 5) bad("scale_windows", "each must be >= 5 px");
+  if (!(neighbour_jump > 0)) bad("neighbour_jump", "must be > 0 m");
   for (const auto* e : {&depth_edges, &angle_edges}) {
     if (e->size() < 2 || !std::is_sorted(e->begin(), e->end()) ||
         std::adjacent_find(e->begin(), e->end()) != e->end())
@@ -337,6 +361,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   s.window = p.window;
   s.depth_bin_max_angle = p.depth_bin_max_angle;
   CorrelationSums corr;
+  std::vector<std::vector<DepthStats::Window>> scale_samples(p.scale_windows.size());
   std::vector<Edge> edges;
   long flying = 0, lone = 0;
   std::vector<double> positions;
@@ -350,15 +375,35 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
                                   std::to_string(K.height));
     const Frame fr(img, K, p);
     for (std::uint16_t d : img.data) s.valid_px += d != 0;
-    // Neighbour differences of raw values, for the quantization step.
+    // Neighbour differences of raw values, for the quantization step (along rows), and
+    // the jumps between valid neighbours (rows and columns).
+    const auto raw = [&](int u, int v) {
+      return static_cast<int>(img.data[static_cast<std::size_t>(v) * img.width + u]);
+    };
+    const auto pair = [&](int a, int b) {
+      if (!a || !b) return;
+      ++s.neighbour_pairs;
+      s.neighbour_jumps += std::abs(a - b) * K.depth_scale > p.neighbour_jump;
+    };
     for (int v = 0; v < img.height; ++v)
-      for (int u = 0; u + 1 < img.width; ++u) {
-        const int a = img.data[static_cast<std::size_t>(v) * img.width + u];
-        const int b = img.data[static_cast<std::size_t>(v) * img.width + u + 1];
+      for (int u = 0; u < img.width; ++u) {
+        const int a = raw(u, v);
+        if (v + 1 < img.height) pair(a, raw(u, v + 1));
+        if (u + 1 >= img.width) continue;
+        const int b = raw(u + 1, v);
+        pair(a, b);
         const int d = std::abs(a - b);
         if (a && b && d > 0 && d < 256) ++diffs[static_cast<std::size_t>(d)];
       }
-    fr.windows(s.samples, corr);
+    fr.windows(p.window, p.min_valid, s.samples, &corr);
+    for (std::size_t w = 0; w < p.scale_windows.size(); ++w) {
+      const int n = p.scale_windows[w];
+      if (n == p.window) continue;  // the samples above
+      // min_valid in proportion to the area, and enough for a quadratic's 6 parameters.
+      const int min_valid = std::max(7, static_cast<int>(std::ceil(
+          static_cast<double>(p.min_valid) * n * n / (static_cast<double>(p.window) * p.window))));
+      fr.windows(n, min_valid, scale_samples[w], nullptr);
+    }
     fr.edges(edges, flying, lone, s.band_neighbours, positions);
     fr.holes(s.hole_sizes);
   }
@@ -378,7 +423,8 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
     if (diffs[static_cast<std::size_t>(d)] * 200 >= total) step = std::gcd(step, d);
   s.depth_step = std::max(step, 1) * K.depth_scale;
 
-  auto bins = [&](const std::vector<double>& edges_, bool by_depth) {
+  auto bins = [&](const std::vector<double>& edges_, bool by_depth,
+                  double DepthStats::Window::*sigma = &DepthStats::Window::sigma) {
     std::vector<SigmaBin> out;
     for (std::size_t b = 0; b + 1 < edges_.size(); ++b) {
       SigmaBin bin;
@@ -387,7 +433,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
       std::vector<double> sig, at;
       for (const DepthStats::Window& w : s.samples) {
         if (!in_sigma_bin(w, bin, by_depth, p.depth_bin_max_angle)) continue;
-        sig.push_back(w.sigma);
+        sig.push_back(w.*sigma);
         at.push_back(by_depth ? w.z : w.angle);
       }
       bin.windows = static_cast<int>(sig.size());
@@ -399,9 +445,33 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   };
   s.sigma_by_depth = bins(p.depth_edges, true);
   s.sigma_by_angle = bins(p.angle_edges, false);
+  s.sigma_quad_by_angle = bins(p.angle_edges, false, &DepthStats::Window::sigma_quad);
   for (int l = 0; l < 4; ++l)
     s.correlation[static_cast<std::size_t>(l)] =
         corr.aa[l] > 0 && corr.bb[l] > 0 ? corr.ab[l] / std::sqrt(corr.aa[l] * corr.bb[l]) : 0;
+  s.correlation_rows = corr.rows.correlation();
+  s.correlation_cols = corr.cols.correlation();
+  const auto scale_of = [](int window, const std::vector<DepthStats::Window>& ws) {
+    DepthStats::Scale sc;
+    sc.window = window;
+    sc.windows = static_cast<int>(ws.size());
+    std::vector<double> plane, quad;
+    int beats = 0;
+    for (const DepthStats::Window& w : ws) {
+      plane.push_back(w.sigma);
+      quad.push_back(w.sigma_quad);
+      beats += w.sigma_quad < kQuadBeatsPlane * w.sigma;
+    }
+    sc.sigma = median(plane);
+    sc.sigma_quad = median(quad);
+    sc.quad_beats_plane = ws.empty() ? 0 : static_cast<double>(beats) / static_cast<double>(ws.size());
+    return sc;
+  };
+  s.quad_beats_plane = scale_of(p.window, s.samples).quad_beats_plane;
+  for (std::size_t w = 0; w < p.scale_windows.size(); ++w) {
+    const int n = p.scale_windows[w];
+    s.scales.push_back(scale_of(n, n == p.window ? s.samples : scale_samples[w]));
+  }
 
   s.near_left = side_of(edges, true, K.fx);
   s.near_right = side_of(edges, false, K.fx);

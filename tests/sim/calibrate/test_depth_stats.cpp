@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <random>
 #include <string>
 
 #include "linksight/io/frames.hpp"
@@ -276,6 +277,116 @@ TEST(DepthStats, WindowResponseOfCorrelatedNoise) {
   EXPECT_THROW((void)window_response(1.0, 3), std::invalid_argument);
 }
 
+// A fronto-parallel wall at 0.6 m, 300 x 225 px (20 x 15 windows of 15 px), depth in
+// 0.1 mm units, plus `field(u, v)` [m].
+template <class Field>
+io::DepthImage wall(io::Intrinsics& K, Field field) {
+  K = io::Intrinsics{};
+  K.width = 300;
+  K.height = 225;
+  K.cx = 150;
+  K.cy = 112;
+  K.depth_scale = 1e-4;
+  io::DepthImage img;
+  img.width = K.width;
+  img.height = K.height;
+  for (int v = 0; v < K.height; ++v)
+    for (int u = 0; u < K.width; ++u)
+      img.data.push_back(static_cast<std::uint16_t>(std::lround((0.6 + field(u, v)) / K.depth_scale)));
+  return img;
+}
+
+// White noise: no correlation along rows or columns at any lag, and a quadratic no better
+// than a plane (its 3 more parameters take 3 more degrees of freedom, no more).
+TEST(DepthStats, WhiteNoiseIsUncorrelatedBothWaysAndPlaneEnough) {
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> n(0.0, 0.001);
+  std::vector<double> white(300 * 225);
+  for (double& x : white) x = n(rng);
+  io::Intrinsics K;
+  const io::DepthImage img = wall(K, [&](int u, int v) { return white[v * 300 + u]; });
+  const DepthStats s = depth_stats({img}, K);
+  for (int l = 0; l < kCorrelationLags; ++l) {
+    EXPECT_LT(std::abs(s.correlation_rows[l]), 0.05) << "lag " << l + 1;
+    EXPECT_LT(std::abs(s.correlation_cols[l]), 0.05) << "lag " << l + 1;
+  }
+  EXPECT_LT(s.quad_beats_plane, 0.05);
+  ASSERT_EQ(s.scales.size(), 3u);
+  for (const DepthStats::Scale& sc : s.scales) {
+    EXPECT_GT(sc.windows, 10) << sc.window;
+    EXPECT_NEAR(sc.sigma, 0.001, 0.1e-3) << sc.window;
+    EXPECT_NEAR(sc.sigma_quad, 0.001, 0.1e-3) << sc.window;
+  }
+  EXPECT_EQ(s.neighbour_jumps, 0);
+  EXPECT_EQ(s.neighbour_pairs, 2L * 300 * 225 - 300 - 225);
+}
+
+// Noise averaged over 5 pixels of a row: correlated along rows (the box's 1 - lag/5, less
+// what the fits take), not along columns; nothing left at lag 5 and beyond.
+TEST(DepthStats, RowCorrelatedNoiseReadsAlongRowsOnly) {
+  std::mt19937_64 rng(4);
+  std::normal_distribution<double> n(0.0, 0.002);
+  std::vector<double> white(304 * 225);
+  for (double& x : white) x = n(rng);
+  io::Intrinsics K;
+  const io::DepthImage img = wall(K, [&](int u, int v) {
+    double sum = 0;
+    for (int d = 0; d < 5; ++d) sum += white[v * 304 + u + d];
+    return sum / 5;
+  });
+  const DepthStats s = depth_stats({img}, K);
+  EXPECT_GT(s.correlation_rows[0], 0.6);
+  EXPECT_GT(s.correlation_rows[1], 0.4);
+  // The quadratic's x terms are fitted across all 15 rows of a window and taken from each:
+  // of noise this smooth along rows, that shared part reads about 0.1 along columns.
+  EXPECT_LT(std::abs(s.correlation_cols[0]), 0.15);
+  EXPECT_GT(s.correlation_rows[0] - s.correlation_cols[0], 0.5);
+  EXPECT_LT(std::abs(s.correlation_rows[5]), 0.1);
+}
+
+// A surface curved within each window (a parabola across every 15 px window's columns,
+// 2 mm deep) under faint white noise: a quadratic takes the curve up and a plane does not,
+// in every window.
+TEST(DepthStats, CurvatureWithinTheWindowIsTakenUpByAQuadratic) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> n(0.0, 0.0002);
+  std::vector<double> white(300 * 225);
+  for (double& x : white) x = n(rng);
+  io::Intrinsics K;
+  const io::DepthImage img = wall(K, [&](int u, int v) {
+    const double x = u % 15 - 7;
+    return 4e-5 * x * x + white[v * 300 + u];
+  });
+  const DepthStats s = depth_stats({img}, K);
+  EXPECT_GT(s.quad_beats_plane, 0.9);
+  ASSERT_EQ(s.scales.size(), 3u);
+  EXPECT_EQ(s.scales[1].window, 15);
+  EXPECT_LT(s.scales[1].sigma_quad, 0.5 * s.scales[1].sigma);
+  EXPECT_NEAR(s.scales[1].sigma_quad, 0.0002, 0.05e-3);
+  ASSERT_EQ(s.sigma_quad_by_angle.size(), s.sigma_by_angle.size());
+  int bins = 0;
+  for (std::size_t k = 0; k < s.sigma_quad_by_angle.size(); ++k) {
+    if (s.sigma_quad_by_angle[k].windows == 0) continue;
+    ++bins;
+    EXPECT_LT(s.sigma_quad_by_angle[k].sigma, 0.5 * s.sigma_by_angle[k].sigma) << "bin " << k;
+  }
+  EXPECT_GT(bins, 0);
+}
+
+// Valid neighbours across a 100 mm step are jumps, one per row; an invalid column between
+// the two sides (what a real camera leaves) makes none.
+TEST(DepthStats, NeighbourJumpsCountValidPairsAcrossAStep) {
+  io::Intrinsics K;
+  const io::DepthImage step = wall(K, [](int u, int) { return u < 150 ? 0.0 : 0.1; });
+  const DepthStats s = depth_stats({step}, K);
+  EXPECT_EQ(s.neighbour_jumps, 225);
+  io::DepthImage gap = step;
+  for (int v = 0; v < 225; ++v) gap.data[static_cast<std::size_t>(v) * 300 + 150] = 0;
+  const DepthStats g = depth_stats({gap}, K);
+  EXPECT_EQ(g.neighbour_jumps, 0);
+  EXPECT_EQ(g.neighbour_pairs, s.neighbour_pairs - 2 * 225 - 224);
+}
+
 TEST(DepthStats, BadInputIsNamed) {
   io::Intrinsics K;
   std::vector<io::DepthImage> frames = real_frames(K);
@@ -302,6 +413,10 @@ TEST(DepthStats, BadInputIsNamed) {
   DepthStatsParams p;
   p.window = 3;
   EXPECT_THROW(p.validate(), std::invalid_argument);
+  p = {};
+  p.scale_windows = {9, 4};
+  EXPECT_EQ(test::error_of([&] { p.validate(); }),
+            "DepthStatsParams.scale_windows: each must be >= 5 px");
 }
 
 }  // namespace

@@ -35,8 +35,22 @@ struct DepthStatsParams {
   /// sigma by depth, and the residual correlation, use windows under this incidence: the
   /// angle term stays out of the one, the lateral noise's depth effect out of the other [rad].
   double depth_bin_max_angle = 0.5236;
+  /// Window sides [px] at which the plane- and quadratic-fit sigma are also reported
+  /// (DepthStats::scales): noise that varies slowly over tens of pixels is taken up by a
+  /// quadratic in a large window, not in a small one.
+  std::vector<int> scale_windows = {9, 15, 25};
+  /// Valid neighbours (a row's or a column's) farther apart in depth than this make a
+  /// jump (DepthStats::neighbour_jumps) [m].
+  double neighbour_jump = 0.02;
   void validate() const;  ///< throws std::invalid_argument naming the field
 };
+
+/// Lags of the directional residual correlation (DepthStats::correlation_rows).
+inline constexpr int kCorrelationLags = 6;
+
+/// A quadratic's sigma "clearly below" a plane's (DepthStats::quad_beats_plane): under this
+/// fraction of it.
+inline constexpr double kQuadBeatsPlane = 0.8;
 
 /// Median plane-fit sigma of the windows in one bin.
 struct SigmaBin {
@@ -72,14 +86,37 @@ struct DepthStats {
   double depth_step = 0;  ///< quantization step of the raw values [m]
   std::vector<SigmaBin> sigma_by_depth, sigma_by_angle;
   int windows = 0;        ///< accepted plane-fit windows
-  /// Every accepted window: median depth [m], incidence of its fitted plane [rad], sigma [m].
+  /// Every accepted window: median depth [m], incidence of its fitted plane [rad], sigma
+  /// of the residuals of the plane fit (3 parameters) and of a quadratic surface's (6) [m].
   struct Window {
-    double z = 0, angle = 0, sigma = 0;
+    double z = 0, angle = 0, sigma = 0, sigma_quad = 0;
   };
   std::vector<Window> samples;
   /// Residual correlation at lags 1..4 px (horizontal and vertical pooled), over windows
   /// under depth_bin_max_angle, on the residuals of a quadratic surface.
   std::array<double, 4> correlation{};
+  /// The same correlation along rows only (lag in u) and along columns only (lag in v), at
+  /// lags 1..kCorrelationLags px: real cameras' noise is not isotropic.
+  std::array<double, kCorrelationLags> correlation_rows{}, correlation_cols{};
+  /// Median quadratic-fit sigma per incidence bin (the bins of sigma_by_angle).
+  std::vector<SigmaBin> sigma_quad_by_angle;
+  /// Share of the accepted windows whose quadratic-fit sigma is below kQuadBeatsPlane times
+  /// their plane-fit sigma: how much of the noise varies over the window, not pixel to pixel.
+  double quad_beats_plane = 0;
+  /// Per side of params.scale_windows, over every accepted window of that side (accepted as
+  /// for `window`: min_valid scaled by area, no residual above max_residual).
+  struct Scale {
+    int window = 0;                 ///< [px]
+    int windows = 0;                ///< accepted
+    double sigma = 0;               ///< median plane-fit sigma [m]
+    double sigma_quad = 0;          ///< median quadratic-fit sigma [m]
+    double quad_beats_plane = 0;    ///< as the field of that name
+  };
+  std::vector<Scale> scales;
+  /// Pairs of valid pixels next to each other in a row or a column, and those of them
+  /// more than params.neighbour_jump apart in depth (a real camera leaves a discontinuity
+  /// invalid; per million pairs: neighbour_jumps * 1e6 / neighbour_pairs).
+  long neighbour_pairs = 0, neighbour_jumps = 0;
   /// near_left: the near surface left of the gap (its right edge); near_right: the other.
   EdgeSide near_left, near_right;
   /// Projector: which side the shadows show it on, and the baseline along the camera's
