@@ -92,9 +92,17 @@ def track(points, nodes, pitch, n_nodes):
         nodes = lsq_init(points, n_nodes, pitch, None)
     reinit = False
     remaining = ITERATIONS
+    d2, t = np.empty((len(points), n_nodes)), np.empty((len(points), n_nodes))
     while remaining > 0:
         remaining -= 1
-        d2 = ((points[:, None, :] - nodes[None, :, :]) ** 2).sum(axis=2)
+        # Squared distances axis by axis into two reused arrays: the same sum, in the same
+        # order, as summing an (n, M, 3) array over its last axis, at a third of the time
+        # and without a fresh (page-faulting) allocation per term.
+        for a in range(3):
+            np.subtract(points[:, a, None], nodes[None, :, a], out=t)
+            np.multiply(t, t, out=t if a else d2)
+            if a:
+                np.add(d2, t, out=d2)
         winner = np.argmin(d2, axis=1)  # Eq. (11); ties to the lower index
         count = np.bincount(winner, minlength=n_nodes)
         if not initialized_now and (count == 0).any():  # Sec. IV.C
