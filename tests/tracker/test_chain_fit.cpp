@@ -17,6 +17,8 @@ namespace {
 constexpr double kNoiseFreeBand = 0.05e-3;  // [m]: issue 17's noise-free target
 constexpr double kNoisyMeanBand = 0.5e-3;   // [m]: issue 17's sr300 target (mean)
 constexpr double kPitchTolerance = 1e-9;    // [m]: issue 17 asks for 1e-6
+// [m]: a noise-free fit's points off its surface (float32 points alone leave 0.01-0.03 µm).
+constexpr double kNoiseFreeRms = 1e-7;
 
 // The standard test link at `distance` from the camera (its bending plane tilted toward it).
 Nodes chain_at(sim::ChainShape shape, double distance, const ComponentGeometry& g) {
@@ -49,6 +51,13 @@ double mean_error(const Nodes& a, const Nodes& b) {
   for (std::size_t k = 0; k < a.size(); ++k) m += (a[k] - b[k]).norm();
   return m / static_cast<double>(a.size());
 }
+// RMS distance of every point to the chain's surface [m].
+double surface_rms(const Cloud& cloud, const ChainState& chain, const ComponentGeometry& g) {
+  double sum2 = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i)
+    sum2 += std::pow(nearest_surface(cloud.point(i), chain, g).distance, 2);
+  return std::sqrt(sum2 / static_cast<double>(cloud.size()));
+}
 void expect_pitch(const ChainState& s, const ComponentGeometry& g) {
   const Nodes n = s.nodes(g.pitch);
   for (std::size_t k = 0; k + 1 < n.size(); ++k)
@@ -74,7 +83,11 @@ TEST_P(ChainFit, NoiseFreeSurfacesGiveTheCentres) {
   EXPECT_LT(max_error(chain.nodes(g.pitch), truth), kNoiseFreeBand)
       << "mean " << mean_error(chain.nodes(g.pitch), truth) * 1e3 << " mm after "
       << r.iterations << " iterations";
-  EXPECT_LT(r.rms, 1e-6);
+  // Converged onto the surface: the fitted chain's own RMS distance to the points (the
+  // result's rms is the last accepted pass's, before the final step within the tolerance:
+  // how small it is depends on the path the steps take, and it differs between compilers).
+  EXPECT_LT(surface_rms(cloud, chain, g), kNoiseFreeRms) << "the last pass's rms " << r.rms;
+  EXPECT_LT(r.rms, ChainFitParams{}.tolerance);
   expect_pitch(chain, g);
 }
 
