@@ -14,9 +14,15 @@ namespace {
 using namespace linksight::sim;
 
 void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractParams::Mode mode,
-                    bool chain_only = false) {
+                    bool chain_only = false, bool two_terms = false) {
   Scene scene = load_scene(std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file);
   scene.segmentation.mode = mode;
+  if (two_terms) {  // the axial noise as two anisotropic fields (issue 20), what it costs
+    scene.noise.axial.correlation_cols_px = 2.5;
+    scene.noise.axial.low_share = 0.5;
+    scene.noise.axial.low_rows_px = 6;
+    scene.noise.axial.low_cols_px = 8;
+  }
   auto world = make_world(scene);
   const double t = 2.3;
   const Truth truth = world->truth();  // the chain at rest; the hand moves with t
@@ -66,6 +72,13 @@ BENCHMARK_CAPTURE(BM_SensorFrame, default_truth, "default.yaml", ExtractParams::
 // The same, rendering only the chain's box, as `linksight run` does.
 BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only, "default.yaml", ExtractParams::Mode::truth,
                   true)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+// Both again with the two-term axial field: widths 6 and 8 px, so its blur reaches 24 px.
+BENCHMARK_CAPTURE(BM_SensorFrame, default_truth_two_terms, "default.yaml",
+                  ExtractParams::Mode::truth, false, true)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only_two_terms, "default.yaml",
+                  ExtractParams::Mode::truth, true, true)
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_SensorFrame, occluder_pass_depth, "occluder_pass.yaml",
                   ExtractParams::Mode::depth)

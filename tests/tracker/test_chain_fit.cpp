@@ -17,8 +17,10 @@ namespace {
 constexpr double kNoiseFreeBand = 0.05e-3;  // [m]: issue 17's noise-free target
 constexpr double kNoisyMeanBand = 0.5e-3;   // [m]: issue 17's sr300 target (mean)
 constexpr double kPitchTolerance = 1e-9;    // [m]: issue 17 asks for 1e-6
-// [m]: a noise-free fit's points off its surface (float32 points alone leave 0.01-0.03 µm).
-constexpr double kNoiseFreeRms = 1e-7;
+// [m]: a noise-free fit's points off its surface. gcc's build reads 0.006-0.025 µm (about
+// what float32 points leave), clang's 0.12 µm on the C-shaped link: the final step, within
+// the fit's tolerance, lands a little differently.
+constexpr double kNoiseFreeRms = 1e-6;
 
 // The standard test link at `distance` from the camera (its bending plane tilted toward it).
 Nodes chain_at(sim::ChainShape shape, double distance, const ComponentGeometry& g) {

@@ -467,10 +467,11 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
     sc.quad_beats_plane = ws.empty() ? 0 : static_cast<double>(beats) / static_cast<double>(ws.size());
     return sc;
   };
-  s.quad_beats_plane = scale_of(p.window, s.samples).quad_beats_plane;
+  const DepthStats::Scale at_window = scale_of(p.window, s.samples);
+  s.quad_beats_plane = at_window.quad_beats_plane;
   for (std::size_t w = 0; w < p.scale_windows.size(); ++w) {
     const int n = p.scale_windows[w];
-    s.scales.push_back(scale_of(n, n == p.window ? s.samples : scale_samples[w]));
+    s.scales.push_back(n == p.window ? at_window : scale_of(n, scale_samples[w]));
   }
 
   s.near_left = side_of(edges, true, K.fx);
@@ -516,20 +517,43 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
 }
 
 WindowResponse window_response(double correlation_px, int window) {
+  AxialNoise axial;
+  axial.correlation_px = correlation_px;
+  axial.correlation_cols_px = 0;
+  axial.low_share = 0;
+  return window_response(axial, window);
+}
+
+WindowResponse window_response(const AxialNoise& axial, int window) {
   if (window < 5)
     throw std::invalid_argument("window_response: window = " + std::to_string(window) +
                                 ": must be >= 5 px");
+  if (!(axial.low_share >= 0 && axial.low_share < 1) ||
+      (axial.low_share > 0 && !(axial.low_rows_px > 0 && axial.low_cols_px > 0)))
+    throw std::invalid_argument("window_response: low_share = " + format_shortest(axial.low_share) +
+                                " needs to be in [0, 1), with widths > 0");
   const int n = window, N = n * n;
-  // Cov of the noise: exp(-d^2 / (4 s^2)), the correlation of a Gaussian-blurred white field.
-  Eigen::MatrixXd C = Eigen::MatrixXd::Identity(N, N);
-  if (correlation_px > 0) {
-    const double k = 1.0 / (4 * correlation_px * correlation_px);
+  // Cov of the noise: each field's Gaussian-blurred white noise correlates pixels du, dv
+  // apart by exp(-du^2 / (4 w_u^2) - dv^2 / (4 w_v^2)); the two fields add by their shares.
+  const auto add_field = [&](Eigen::MatrixXd& C, double w_u, double w_v, double share) {
+    if (!(w_u > 0)) {  // white
+      C.diagonal().array() += share;
+      return;
+    }
+    const double ku = 1.0 / (4 * w_u * w_u), kv = 1.0 / (4 * w_v * w_v);
     for (int a = 0; a < N; ++a)
       for (int b = 0; b < N; ++b) {
         const double du = a % n - b % n, dv = a / n - b / n;
-        C(a, b) = std::exp(-(du * du + dv * dv) * k);
+        // (isotropic: one product, as the model before the two terms computed it)
+        const double e = ku == kv ? std::exp(-(du * du + dv * dv) * ku)
+                                  : std::exp(-(du * du * ku + dv * dv * kv));
+        C(a, b) += share == 1 ? e : share * e;
       }
-  }
+  };
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(N, N);
+  const double s = axial.low_share;
+  add_field(C, axial.rows_px(), axial.cols_px(), 1 - s);
+  if (s > 0) add_field(C, axial.low_rows_px, axial.low_cols_px, s);
   auto residual_maker = [&](int terms) {
     Eigen::MatrixXd X(N, terms);
     for (int a = 0; a < N; ++a) {
@@ -546,18 +570,33 @@ WindowResponse window_response(double correlation_px, int window) {
   r.variance_factor = C.cwiseProduct(P).sum() / (N - 3);
   // Cov of the quadratic fit's residuals, Q C Q, entry by entry where needed.
   const Eigen::MatrixXd Q = residual_maker(6);
+  r.quad_variance_factor = C.cwiseProduct(Q).sum() / (N - 6);
   const Eigen::MatrixXd CQ = C * Q;
   auto R = [&](int a, int b) { return Q.col(a).dot(CQ.col(b)); };
   Eigen::VectorXd diag(N);
   for (int a = 0; a < N; ++a) diag[a] = R(a, a);
-  for (int lag = 1; lag <= 4; ++lag) {
+  for (int lag = 1; lag <= kCorrelationLags && lag < n; ++lag) {
+    // Pooled over both directions (lags 1..4), and along rows and along columns, summed
+    // as depth_stats sums them.
     double ab = 0, aa = 0, bb = 0;
+    double ab_r = 0, aa_r = 0, bb_r = 0, ab_c = 0, aa_c = 0, bb_c = 0;
     for (int a = 0; a < N; ++a) {
       const int u = a % n, v = a / n;
-      if (u + lag < n) ab += R(a, a + lag), aa += diag[a], bb += diag[a + lag];
-      if (v + lag < n) ab += R(a, a + lag * n), aa += diag[a], bb += diag[a + lag * n];
+      if (u + lag < n) {
+        const double x = R(a, a + lag);
+        ab += x, aa += diag[a], bb += diag[a + lag];
+        ab_r += x, aa_r += diag[a], bb_r += diag[a + lag];
+      }
+      if (v + lag < n) {
+        const double x = R(a, a + lag * n);
+        ab += x, aa += diag[a], bb += diag[a + lag * n];
+        ab_c += x, aa_c += diag[a], bb_c += diag[a + lag * n];
+      }
     }
-    r.correlation[static_cast<std::size_t>(lag - 1)] = ab / std::sqrt(aa * bb);
+    const auto l = static_cast<std::size_t>(lag - 1);
+    r.correlation_rows[l] = ab_r / std::sqrt(aa_r * bb_r);
+    r.correlation_cols[l] = ab_c / std::sqrt(aa_c * bb_c);
+    if (lag <= 4) r.correlation[l] = ab / std::sqrt(aa * bb);
   }
   return r;
 }

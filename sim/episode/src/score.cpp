@@ -48,6 +48,15 @@ std::vector<std::size_t> nearest_balls(const Nodes& estimate, const Nodes& truth
         nearest[j] = k;
   return nearest;
 }
+
+// The event of `kind` (0: occlusion, 1: fast motion) over frames [start, end).
+Event event_of(int kind, int start, int end) {
+  Event e;
+  e.kind = kind == 0 ? Event::Kind::occlusion : Event::Kind::fast_motion;
+  e.start = start;
+  e.end = end;
+  return e;
+}
 }  // namespace
 
 int topology_swaps(const Nodes& estimate, const Nodes& truth) {
@@ -141,11 +150,7 @@ void EpisodeScorer::add(const FrameScore& score, double sdf, bool reinit, double
     if (flagged[kind]) {
       if (run_start_[kind] < 0) run_start_[kind] = f;
     } else if (run_start_[kind] >= 0) {
-      Event e;
-      e.kind = kind == 0 ? Event::Kind::occlusion : Event::Kind::fast_motion;
-      e.start = run_start_[kind];
-      e.end = f;
-      events_[kind].push_back(e);
+      events_[kind].push_back(event_of(kind, run_start_[kind], f));
       pending_.emplace_back(kind, events_[kind].size() - 1);
       run_start_[kind] = -1;
     }
@@ -185,11 +190,7 @@ EpisodeSummary EpisodeScorer::summary() const {
   for (int kind = 0; kind < 2; ++kind) {
     s.events.insert(s.events.end(), events_[kind].begin(), events_[kind].end());
     if (run_start_[kind] >= 0) {  // still running at the last frame: not recovered
-      Event e;
-      e.kind = kind == 0 ? Event::Kind::occlusion : Event::Kind::fast_motion;
-      e.start = run_start_[kind];
-      e.end = s.frames;
-      s.events.push_back(e);
+      s.events.push_back(event_of(kind, run_start_[kind], s.frames));
     }
   }
   std::stable_sort(s.events.begin(), s.events.end(),

@@ -37,6 +37,9 @@ void NoiseParams::validate() const {
   if (!(dropouts.hole_p90_px >= dropouts.hole_median_px))
     fields::fail("noise", "dropouts.hole_p90_px", dropouts.hole_p90_px,
                  "must be >= hole_median_px (" + format_shortest(dropouts.hole_median_px) + ")");
+  if (axial.correlation_cols_px > 0 && !(axial.correlation_px > 0))
+    fields::fail("noise", "axial.correlation_cols_px", axial.correlation_cols_px,
+                 "needs correlation_px > 0 (a white pixel-scale term has no width)");
 }
 
 }  // namespace linksight::sim

@@ -12,7 +12,9 @@
 namespace linksight::sim::detail {
 
 // The draws' streams per pixel key.
-enum Stream : std::uint64_t { kJitter = 0, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6 };
+enum Stream : std::uint64_t {
+  kJitter = 0, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6, kAxialLow = 7
+};
 
 // The seed of frame `frame` of the sensor's draws from the run's `seed`.
 inline std::uint64_t sensor_frame_seed(std::uint64_t seed, std::uint64_t frame) {

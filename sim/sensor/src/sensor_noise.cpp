@@ -14,6 +14,7 @@ namespace linksight::sim {
 namespace {
 
 using detail::kAxial;
+using detail::kAxialLow;
 using detail::kEdge;
 using detail::kFlying;
 using detail::kMix;
@@ -77,7 +78,15 @@ SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
     : noise_(noise), camera_(camera) {
   noise.validate();
   camera.validate();
-  if (noise.axial.correlation_px > 0) blur_kernel_ = unit_variance_gaussian(noise.axial.correlation_px);
+  const AxialNoise& ax = noise.axial;
+  if (ax.rows_px() > 0) {
+    rows_kernel_ = unit_variance_gaussian(ax.rows_px());
+    cols_kernel_ = unit_variance_gaussian(ax.cols_px());
+  }
+  if (ax.low_share > 0) {
+    low_rows_kernel_ = unit_variance_gaussian(ax.low_rows_px);
+    low_cols_kernel_ = unit_variance_gaussian(ax.low_cols_px);
+  }
 }
 
 void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame, int threads,
@@ -157,10 +166,15 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       for (const int k : blob) hole_[static_cast<std::size_t>(k)] = 1;
     }
   }
-  // Correlated axial noise: a white field over the box of hit pixels (plus the kernel's
-  // reach), blurred row then column by a normalized Gaussian. Each white value depends on
-  // its pixel's key only, so the field is the same for any thread count.
-  const bool correlated = noise.axial.enabled && noise.axial.correlation_px > 0;
+  // Correlated axial noise: a white field over the box of hit pixels (plus the kernels'
+  // reach), blurred row then column by normalized Gaussians. Each white value depends on
+  // its pixel's key only, so the field is the same for any thread count. With a
+  // low-frequency term, a second field (its own stream) is blurred by its kernels and the
+  // two are mixed by their shares of the variance.
+  const AxialNoise& ax = noise.axial;
+  const bool fine = ax.enabled && !rows_kernel_.empty();
+  const bool low = ax.enabled && !low_rows_kernel_.empty();
+  const bool correlated = fine || low;
   int bu0 = W, bu1 = -1, bv0 = H, bv1 = -1;
   if (correlated) {  // hits lie in the cast rectangle
     for (int v = std::max(0, hits.v0); v <= std::min(H - 1, hits.v1); ++v)
@@ -170,24 +184,44 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
           bv0 = std::min(bv0, v), bv1 = std::max(bv1, v);
         }
   }
-  if (correlated && bu1 >= 0) {
-    const int R = static_cast<int>(blur_kernel_.size() / 2);
-    const int fu0 = std::max(0, bu0 - R), fu1 = std::min(W - 1, bu1 + R);
-    const int fv0 = std::max(0, bv0 - R), fv1 = std::min(H - 1, bv1 + R);
+  // The field of `stream` over the box, blurred by `rows` then `cols` (white where they are
+  // empty), each pixel's value times `weight` added into field_.
+  const auto add_field = [&](const std::vector<float>& rows, const std::vector<float>& cols,
+                             std::uint64_t stream, float weight) {
+    const int Ru = static_cast<int>(rows.size() / 2), Rv = static_cast<int>(cols.size() / 2);
+    const int fu0 = std::max(0, bu0 - Ru), fu1 = std::min(W - 1, bu1 + Ru);
+    const int fv0 = std::max(0, bv0 - Rv), fv1 = std::min(H - 1, bv1 + Rv);
     const int fw = fu1 - fu0 + 1, fh = fv1 - fv0 + 1;
     white_.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
-    blurred_.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
-    field_.assign(n, 0.0F);
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int v = fv0; v <= fv1; ++v)
       for (int u = fu0; u <= fu1; ++u)
         white_[static_cast<std::size_t>(v - fv0) * fw + (u - fu0)] = static_cast<float>(
-            normal(pixel_key(frame_seed, static_cast<std::size_t>(v) * W + u), kAxial));
-    blur_rows(white_, blurred_, fw, fh, blur_kernel_, threads);
-    blur_columns(blurred_, white_, fw, fh, blur_kernel_, threads);
-    for (int y = 0; y < fh; ++y)
-      std::copy_n(white_.begin() + static_cast<std::ptrdiff_t>(y) * fw, fw,
-                  field_.begin() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0);
+            normal(pixel_key(frame_seed, static_cast<std::size_t>(v) * W + u), stream));
+    if (!rows.empty()) {
+      blurred_.assign(static_cast<std::size_t>(fw) * fh, 0.0F);
+      blur_rows(white_, blurred_, fw, fh, rows, threads);
+      blur_columns(blurred_, white_, fw, fh, cols, threads);
+    }
+    for (int y = 0; y < fh; ++y) {
+      const float* src = white_.data() + static_cast<std::ptrdiff_t>(y) * fw;
+      float* dst = field_.data() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0;
+      if (weight == 1.0F) {
+        std::copy_n(src, fw, dst);
+      } else {
+        for (int x = 0; x < fw; ++x) dst[x] += weight * src[x];
+      }
+    }
+  };
+  if (correlated && bu1 >= 0) {
+    field_.assign(n, 0.0F);
+    if (!low) {
+      add_field(rows_kernel_, cols_kernel_, kAxial, 1.0F);  // the one-field model, as it was
+    } else {
+      add_field(rows_kernel_, cols_kernel_, kAxial, static_cast<float>(std::sqrt(1 - ax.low_share)));
+      add_field(low_rows_kernel_, low_cols_kernel_, kAxialLow,
+                static_cast<float>(std::sqrt(ax.low_share)));
+    }
   }
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = camera_.z_min, z_max = camera_.z_max;

@@ -15,6 +15,7 @@
 #include "linksight/sim/episode.hpp"
 #include "linksight/sim/mesh.hpp"
 #include "linksight/sim/sensor.hpp"
+#include "linksight/sim/sensor_noise.hpp"
 #include "linksight/sim/scene.hpp"
 #include "test_support.hpp"
 
@@ -277,6 +278,59 @@ TEST(DepthStats, WindowResponseOfCorrelatedNoise) {
   EXPECT_THROW((void)window_response(1.0, 3), std::invalid_argument);
 }
 
+// The two-term anisotropic field (issue 20) through the estimator: the sensor's field on a
+// fronto-parallel wall, read by depth_stats, gives what window_response predicts along rows
+// and along columns, and the quadratic-to-plane sigma ratio; the one-field isotropic model
+// reads the same both ways.
+TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
+  constexpr double kRhoTol = 0.03;       // seen: within 0.009
+  constexpr double kRatioRelTol = 0.03;  // the quadratic's sigma over the plane's (seen: 0.1%)
+  NoiseParams n = NoiseParams::off();
+  n.axial.enabled = true;
+  n.axial.a = 0.001;
+  n.axial.c = 0;
+  n.axial.k_theta = 0;
+  n.axial.correlation_px = 1.2;
+  n.axial.correlation_cols_px = 2.0;
+  n.axial.low_share = 0.5;
+  n.axial.low_rows_px = 5;
+  n.axial.low_cols_px = 8;
+  n.quantize = true;  // 0.125 mm steps under 1 mm noise, as the camera's
+  const CameraParams camera;
+  const std::size_t pixels = static_cast<std::size_t>(camera.intrinsics.width) * camera.intrinsics.height;
+  const std::vector<float> depth(pixels, 0.6F), zero(pixels, 0.0F), one(pixels, 1.0F);
+  const std::vector<std::uint8_t> lit(pixels, 1);
+  const NoiseInput wall{camera.intrinsics.width, camera.intrinsics.height, depth, zero, one, one,
+                        one, lit};
+  SensorNoise noise(n, camera);
+  std::vector<io::DepthImage> frames(6);
+  std::vector<float> depth_m;
+  for (std::size_t f = 0; f < frames.size(); ++f) noise.apply(wall, 4, f, 2, frames[f], depth_m);
+  const DepthStats s = depth_stats(frames, camera.intrinsics);
+  const WindowResponse r = window_response(n.axial, s.window);
+  for (int l = 0; l < kCorrelationLags; ++l) {
+    EXPECT_NEAR(s.correlation_rows[l], r.correlation_rows[l], kRhoTol) << "rows, lag " << l + 1;
+    EXPECT_NEAR(s.correlation_cols[l], r.correlation_cols[l], kRhoTol) << "columns, lag " << l + 1;
+  }
+  EXPECT_GT(r.correlation_cols[2] - r.correlation_rows[2], 0.1);  // anisotropic, and read so
+  ASSERT_EQ(s.scales.size(), 3u);
+  EXPECT_NEAR(s.scales[1].sigma_quad / s.scales[1].sigma,
+              std::sqrt(r.quad_variance_factor / r.variance_factor),
+              kRatioRelTol * std::sqrt(r.quad_variance_factor / r.variance_factor));
+  // Isotropic: the same reading both ways, and the one-field overload's.
+  const WindowResponse iso = window_response(1.6);
+  AxialNoise one_field;
+  one_field.correlation_px = 1.6;
+  const WindowResponse same = window_response(one_field);
+  for (int l = 0; l < kCorrelationLags; ++l) {
+    EXPECT_NEAR(iso.correlation_rows[l], iso.correlation_cols[l], 1e-12) << l;
+    EXPECT_EQ(iso.correlation_rows[l], same.correlation_rows[l]) << l;
+  }
+  EXPECT_EQ(iso.variance_factor, same.variance_factor);
+  one_field.low_share = 1;
+  EXPECT_THROW((void)window_response(one_field), std::invalid_argument);
+}
+
 // A fronto-parallel wall at 0.6 m, 300 x 225 px (20 x 15 windows of 15 px), depth in
 // 0.1 mm units, plus `field(u, v)` [m].
 template <class Field>
@@ -296,13 +350,19 @@ io::DepthImage wall(io::Intrinsics& K, Field field) {
   return img;
 }
 
+// `count` independent Gaussian values of σ `sigma` [m], seeded.
+std::vector<double> white_field(std::uint64_t seed, double sigma, std::size_t count) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> n(0.0, sigma);
+  std::vector<double> white(count);
+  for (double& x : white) x = n(rng);
+  return white;
+}
+
 // White noise: no correlation along rows or columns at any lag, and a quadratic no better
 // than a plane (its 3 more parameters take 3 more degrees of freedom, no more).
 TEST(DepthStats, WhiteNoiseIsUncorrelatedBothWaysAndPlaneEnough) {
-  std::mt19937_64 rng(3);
-  std::normal_distribution<double> n(0.0, 0.001);
-  std::vector<double> white(300 * 225);
-  for (double& x : white) x = n(rng);
+  const std::vector<double> white = white_field(3, 0.001, 300 * 225);
   io::Intrinsics K;
   const io::DepthImage img = wall(K, [&](int u, int v) { return white[v * 300 + u]; });
   const DepthStats s = depth_stats({img}, K);
@@ -324,10 +384,7 @@ TEST(DepthStats, WhiteNoiseIsUncorrelatedBothWaysAndPlaneEnough) {
 // Noise averaged over 5 pixels of a row: correlated along rows (the box's 1 - lag/5, less
 // what the fits take), not along columns; nothing left at lag 5 and beyond.
 TEST(DepthStats, RowCorrelatedNoiseReadsAlongRowsOnly) {
-  std::mt19937_64 rng(4);
-  std::normal_distribution<double> n(0.0, 0.002);
-  std::vector<double> white(304 * 225);
-  for (double& x : white) x = n(rng);
+  const std::vector<double> white = white_field(4, 0.002, 304 * 225);
   io::Intrinsics K;
   const io::DepthImage img = wall(K, [&](int u, int v) {
     double sum = 0;
@@ -348,10 +405,7 @@ TEST(DepthStats, RowCorrelatedNoiseReadsAlongRowsOnly) {
 // 2 mm deep) under faint white noise: a quadratic takes the curve up and a plane does not,
 // in every window.
 TEST(DepthStats, CurvatureWithinTheWindowIsTakenUpByAQuadratic) {
-  std::mt19937_64 rng(5);
-  std::normal_distribution<double> n(0.0, 0.0002);
-  std::vector<double> white(300 * 225);
-  for (double& x : white) x = n(rng);
+  const std::vector<double> white = white_field(5, 0.0002, 300 * 225);
   io::Intrinsics K;
   const io::DepthImage img = wall(K, [&](int u, int v) {
     const double x = u % 15 - 7;

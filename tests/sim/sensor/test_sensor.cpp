@@ -465,10 +465,20 @@ TEST(Sensor, ChainOnlyRenderMatchesTheWholeFrameInsideItsBox) {
   RenderExtent extent;
   extent.chain_only = true;
   extent.margin_px = 3;
-  for (const double t : {0.0, 6.5}) {  // the hand is in front of the link at 6.5 s
-    SCOPED_TRACE(t);
-    const DepthFrame a = sensor->render(truth.X_WK, t, 7, 3);
-    const DepthFrame b = sensor->render(truth.X_WK, t, 7, 3, extent);
+  // The one-field model, and the two-term anisotropic one (its low-frequency field reaches
+  // 21 px beyond the box along columns).
+  Scene two_terms = scene;
+  two_terms.noise.axial.correlation_cols_px = 2.5;
+  two_terms.noise.axial.low_share = 0.5;
+  two_terms.noise.axial.low_rows_px = 5;
+  two_terms.noise.axial.low_cols_px = 7;
+  auto two_term_sensor = make_sensor(two_terms, 2);
+  for (const auto& [t, cam] : {std::pair{0.0, sensor.get()}, std::pair{6.5, sensor.get()},
+                               std::pair{6.5, two_term_sensor.get()}}) {
+    // The hand is in front of the link at 6.5 s.
+    SCOPED_TRACE(std::to_string(t) + (cam == two_term_sensor.get() ? " s, two terms" : " s"));
+    const DepthFrame a = cam->render(truth.X_WK, t, 7, 3);
+    const DepthFrame b = cam->render(truth.X_WK, t, 7, 3, extent);
     EXPECT_EQ(a.rendered, (PixelBox{0, a.width - 1, 0, a.height - 1}));
     const PixelBox& box = b.rendered;
     ASSERT_FALSE(box.empty());

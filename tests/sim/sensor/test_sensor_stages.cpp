@@ -3,8 +3,10 @@
 // images without Embree and reproduces what Sensor::render gave.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/sensor_cull.hpp"
@@ -127,6 +129,96 @@ TEST(SensorNoise, SameDepthForAnyThreadCount) {
   noise.apply(plate.input(), 5, 2, 3, three, three_m);
   EXPECT_EQ(one.data, three.data);
   EXPECT_EQ(one_m, three_m);
+}
+
+// The two-term axial field (issue 20): the pixel-scale term with widths 1 px along rows and
+// 2 px along columns, the low-frequency term with 4 and 8 px and 60% of the variance. On a
+// fronto-parallel plate, without other noise: sigma is the model's, and the correlation at
+// lag L along each direction is (1 - s) exp(-L^2 / 4 w^2) + s exp(-L^2 / 4 W^2) with that
+// direction's widths w, W.
+TEST(SensorNoise, TwoTermFieldHasItsSigmaAndEachDirectionsCorrelation) {
+  constexpr double kSigma = 0.002;  // [m]
+  constexpr double kShare = 0.6;
+  constexpr double kRhoTol = 0.03;  // seen: within 0.01 at every lag
+  NoiseParams n = NoiseParams::off();
+  n.axial.enabled = true;
+  n.axial.a = kSigma;
+  n.axial.c = 0;
+  n.axial.k_theta = 0;
+  n.axial.correlation_px = 1.0;
+  n.axial.correlation_cols_px = 2.0;
+  n.axial.low_share = kShare;
+  n.axial.low_rows_px = 4.0;
+  n.axial.low_cols_px = 8.0;
+  const CameraParams camera;
+  const double z = 0.6;
+  const Plate plate(camera.intrinsics, z);
+  SensorNoise noise(n, camera);
+  constexpr int kLags = 6, kBorder = 24;  // away from the image border by the reach, 3 x 8 px
+  std::array<double, kLags + 1> rows{}, cols{};
+  double count = 0;
+  for (std::uint64_t frame = 0; frame < 4; ++frame) {
+    io::DepthImage depth;
+    std::vector<float> depth_m;
+    noise.apply(plate.input(), 9, frame, 2, depth, depth_m);
+    const int W = plate.width;
+    const auto e = [&](int u, int v) {
+      return static_cast<double>(depth_m[static_cast<std::size_t>(v) * W + u]) - z;
+    };
+    for (int v = kBorder; v < plate.height - kBorder - kLags; ++v)
+      for (int u = kBorder; u < W - kBorder - kLags; ++u) {
+        for (int l = 0; l <= kLags; ++l) {
+          rows[l] += e(u, v) * e(u + l, v);
+          cols[l] += e(u, v) * e(u, v + l);
+        }
+        ++count;
+      }
+  }
+  EXPECT_NEAR(std::sqrt(rows[0] / count), kSigma, kSigmaRelTol * kSigma);
+  const auto model = [&](int l, double w, double big) {
+    return (1 - kShare) * std::exp(-l * l / (4 * w * w)) + kShare * std::exp(-l * l / (4 * big * big));
+  };
+  for (int l = 1; l <= kLags; ++l) {
+    EXPECT_NEAR(rows[l] / rows[0], model(l, 1.0, 4.0), kRhoTol) << "along rows, lag " << l;
+    EXPECT_NEAR(cols[l] / cols[0], model(l, 2.0, 8.0), kRhoTol) << "along columns, lag " << l;
+  }
+  // The directions differ by far more than the tolerance: 0.56 against 0.81 at lag 3.
+  EXPECT_GT(cols[3] / cols[0] - rows[3] / rows[0], 0.15);
+}
+
+// The new settings at their defaults are the one-field model, bit for bit (old scenes keep
+// their images); an isotropic width given twice is the same field; the two-term field is
+// the same for any thread count and differs from the one-field one.
+TEST(SensorNoise, TwoTermFieldOffIsTheOneFieldModel) {
+  const CameraParams camera;
+  const Plate plate(camera.intrinsics, 0.6);
+  const auto render = [&](const NoiseParams& n, int threads) {
+    SensorNoise noise(n, camera);
+    io::DepthImage depth;
+    std::vector<float> depth_m;
+    noise.apply(plate.input(), 5, 2, threads, depth, depth_m);
+    return depth_m;
+  };
+  const NoiseParams one = NoiseParams::sr300();
+  ASSERT_EQ(one.axial.low_share, 0.0);
+  ASSERT_EQ(one.axial.correlation_cols_px, 0.0);
+  NoiseParams twice = one;
+  twice.axial.correlation_cols_px = one.axial.correlation_px;
+  EXPECT_EQ(render(one, 2), render(twice, 2));
+  NoiseParams two = one;
+  two.axial.correlation_cols_px = 2.5;
+  two.axial.low_share = 0.5;
+  const std::vector<float> a = render(two, 1);
+  EXPECT_EQ(a, render(two, 3));
+  EXPECT_NE(a, render(one, 1));
+  // A white pixel-scale term under a low-frequency one.
+  two.axial.correlation_px = 0;
+  two.axial.correlation_cols_px = 0;
+  EXPECT_EQ(render(two, 1), render(two, 2));
+  two.axial.correlation_cols_px = 1;
+  const std::string e = test::error_of<std::invalid_argument>([&] { (void)SensorNoise(two, camera); });
+  EXPECT_NE(e.find("noise.axial.correlation_cols_px = 1"), std::string::npos) << e;
+  EXPECT_NE(e.find("needs correlation_px > 0"), std::string::npos) << e;
 }
 
 TEST(SensorNoise, RejectsAnInputOfTheWrongSize) {

@@ -165,16 +165,22 @@ struct DepthStats {
     const std::vector<io::DepthImage>& frames, const io::Intrinsics& intrinsics,
     const NoiseParams& noise, std::uint64_t seed, const DepthSurfaceParams& surface = {});
 
-/// What the window estimator of depth_stats reads from unit-variance noise whose
-/// correlation is Gaussian with width `correlation_px` (AxialNoise::correlation_px), over
-/// full windows: the pooled residual correlation at lags 1..4 and the plane-fit variance
-/// as a fraction of the true one. The fits remove low frequencies, so both read lower
-/// than the noise itself; fit_noise inverts this.
+/// What the window estimator of depth_stats reads from the unit-variance axial field of
+/// `axial` (its correlation widths and low-frequency share; the sigma terms do not
+/// matter), over full windows: the residual correlation at lags 1..4 pooled over both
+/// directions, and along rows and along columns at lags 1..kCorrelationLags (quadratic
+/// residuals, as depth_stats reads them); the plane-fit and quadratic-fit variances as
+/// fractions of the true one. The fits remove low frequencies, so all read lower than the
+/// noise itself; fit_noise inverts this.
 struct WindowResponse {
   std::array<double, 4> correlation{};
-  double variance_factor = 1;
+  std::array<double, kCorrelationLags> correlation_rows{}, correlation_cols{};
+  double variance_factor = 1;       ///< plane fit (DepthStats::Window::sigma)
+  double quad_variance_factor = 1;  ///< quadratic fit (DepthStats::Window::sigma_quad)
 };
 /// Throws std::invalid_argument unless window >= 5.
+[[nodiscard]] WindowResponse window_response(const AxialNoise& axial, int window = 15);
+/// The one-field isotropic model of width `correlation_px` (0: white).
 [[nodiscard]] WindowResponse window_response(double correlation_px, int window = 15);
 
 /// The noise model's parameters fitted to measured statistics, and what could not be.

@@ -27,6 +27,21 @@ struct AxialNoise {
   /// this standard deviation [px] and rescaled to unit variance, so neighbours at lag L
   /// correlate by exp(-L^2 / (4 s^2)). 0: white (every pixel its own draw).
   double correlation_px = 1.6;  ///< (fitted: the camera filters its depth)
+  /// The same width along columns (v) where it differs from the rows' (u) [px]; 0: the
+  /// same as correlation_px (isotropic).
+  double correlation_cols_px = 0;
+  /// A second, low-frequency term (issue 20): a unit field of its own, blurred by a
+  /// Gaussian of low_rows_px along rows and low_cols_px along columns, takes this share of
+  /// the axial variance sigma_z^2 and the pixel-scale term above the rest. 0: off, the
+  /// one-field model (the images are then what they were before the term existed).
+  double low_share = 0;
+  double low_rows_px = 6;  ///< [px]
+  double low_cols_px = 6;  ///< [px]
+  /// The pixel-scale term's widths along rows and columns [px] (0: white).
+  [[nodiscard]] double rows_px() const { return correlation_px; }
+  [[nodiscard]] double cols_px() const {
+    return correlation_px > 0 && correlation_cols_px > 0 ? correlation_cols_px : correlation_px;
+  }
   /// sigma_z [m] at depth z [m] and incidence theta [rad]: sigma(point(z, theta)).
   [[nodiscard]] double sigma(double z, double theta) const;
   /// What sigma needs of a point, apart from a, c and k_theta: so that a fit can try many
@@ -49,6 +64,10 @@ struct AxialNoise {
     ar("k_theta", k_theta, fields::in(0, 0.1));
     ar("theta_cap_deg", theta_cap, fields::deg(fields::in(0, 89.9)));
     ar("correlation_px", correlation_px, fields::in(0, 10));
+    ar("correlation_cols_px", correlation_cols_px, fields::in(0, 10));
+    ar("low_share", low_share, fields::in(0, 0.95));
+    ar("low_rows_px", low_rows_px, fields::in(0.5, 20));
+    ar("low_cols_px", low_cols_px, fields::in(0.5, 20));
   }
 };
 

@@ -51,8 +51,10 @@ class SensorNoise {
  private:
   NoiseParams noise_;
   CameraParams camera_;
-  std::vector<float> blur_kernel_;            // correlated axial noise, set at set-up
-  std::vector<float> white_, blurred_, field_;  // its per-frame buffers
+  // Correlated axial noise, set at set-up: the pixel-scale term's kernels along rows and
+  // columns, and the low-frequency term's (empty when it is off).
+  std::vector<float> rows_kernel_, cols_kernel_, low_rows_kernel_, low_cols_kernel_;
+  std::vector<float> white_, blurred_, field_;  // their per-frame buffers
   std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
   std::vector<int> blob_;                     // the hole being grown
   std::vector<std::uint32_t> blob_stamp_;     // per pixel: the id of the last blob it joined
