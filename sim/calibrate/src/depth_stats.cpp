@@ -528,10 +528,7 @@ WindowResponse window_response(const AxialNoise& axial, int window) {
   if (window < 5)
     throw std::invalid_argument("window_response: window = " + std::to_string(window) +
                                 ": must be >= 5 px");
-  if (!(axial.low_share >= 0 && axial.low_share < 1) ||
-      (axial.low_share > 0 && !(axial.low_rows_px > 0 && axial.low_cols_px > 0)))
-    throw std::invalid_argument("window_response: low_share = " + format_shortest(axial.low_share) +
-                                " needs to be in [0, 1), with widths > 0");
+  fields::check(axial, "axial");  // the scene's ranges: widths > 0, low_share < 1
   const int n = window, N = n * n;
   // Cov of the noise: each field's Gaussian-blurred white noise correlates pixels du, dv
   // apart by exp(-du^2 / (4 w_u^2) - dv^2 / (4 w_v^2)); the two fields add by their shares.

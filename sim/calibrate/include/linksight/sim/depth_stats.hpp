@@ -178,7 +178,8 @@ struct WindowResponse {
   double variance_factor = 1;       ///< plane fit (DepthStats::Window::sigma)
   double quad_variance_factor = 1;  ///< quadratic fit (DepthStats::Window::sigma_quad)
 };
-/// Throws std::invalid_argument unless window >= 5.
+/// Throws std::invalid_argument unless window >= 5, fields::FieldError when a field of
+/// `axial` is out of the scene's range.
 [[nodiscard]] WindowResponse window_response(const AxialNoise& axial, int window = 15);
 /// The one-field isotropic model of width `correlation_px` (0: white).
 [[nodiscard]] WindowResponse window_response(double correlation_px, int window = 15);
