@@ -203,25 +203,18 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       blur_rows(white_, blurred_, fw, fh, rows, threads);
       blur_columns(blurred_, white_, fw, fh, cols, threads);
     }
+    // (weight 1 into the zeroed field_ is the field itself, bit for bit: the one-field model)
     for (int y = 0; y < fh; ++y) {
       const float* src = white_.data() + static_cast<std::ptrdiff_t>(y) * fw;
       float* dst = field_.data() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0;
-      if (weight == 1.0F) {
-        std::copy_n(src, fw, dst);
-      } else {
-        for (int x = 0; x < fw; ++x) dst[x] += weight * src[x];
-      }
+      for (int x = 0; x < fw; ++x) dst[x] += weight * src[x];
     }
   };
   if (correlated && bu1 >= 0) {
     field_.assign(n, 0.0F);
-    if (!low) {
-      add_field(rows_kernel_, cols_kernel_, kAxial, 1.0F);  // the one-field model, as it was
-    } else {
-      add_field(rows_kernel_, cols_kernel_, kAxial, static_cast<float>(std::sqrt(1 - ax.low_share)));
-      add_field(low_rows_kernel_, low_cols_kernel_, kAxialLow,
-                static_cast<float>(std::sqrt(ax.low_share)));
-    }
+    add_field(rows_kernel_, cols_kernel_, kAxial, static_cast<float>(std::sqrt(1 - ax.low_share)));
+    if (low)
+      add_field(low_rows_kernel_, low_cols_kernel_, kAxialLow, static_cast<float>(std::sqrt(ax.low_share)));
   }
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = camera_.z_min, z_max = camera_.z_max;
