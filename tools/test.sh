@@ -20,7 +20,7 @@ ctest --test-dir "${LINKSIGHT_BUILD_DIR:-$root/build}" -j "$jobs" -LE 'robustnes
 stage "the tracker and its tests alone: no simulator dependencies, no OpenCL"
 # Configured without sim/ (so Bullet, Embree, assimp and yaml-cpp are never looked for)
 # and with OpenCL hidden from CMake: the opencl cases must skip, saying why.
-cmake -S "$root" -B "$root/build-tracker" -DLINKSIGHT_BUILD_SIM=OFF -DLINKSIGHT_BUILD_BENCH=OFF \
+cmake -S "$root" -B "$root/build-tracker" -DCMAKE_UNITY_BUILD=ON -DLINKSIGHT_BUILD_SIM=OFF -DLINKSIGHT_BUILD_BENCH=OFF \
   -DCMAKE_DISABLE_FIND_PACKAGE_OpenCL=ON >/dev/null
 cmake --build "$root/build-tracker" -j "$jobs"
 ctest --test-dir "$root/build-tracker" -j "$jobs" --output-on-failure
@@ -46,7 +46,7 @@ stage "libFuzzer, a fixed count of inputs per target from its corpus (seed 1; cl
 # Every target (tests/fuzz/CMakeLists.txt): clang builds what they need of sim/ in about 3
 # minutes at -O1; tools/fuzz.sh TARGET SECONDS runs one for longer.
 targets=(ply depth_png intrinsics nodes_csv frames answer scene grid shard mesh)
-cmake -S "$root" -B "$root/build-fuzz" -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+cmake -S "$root" -B "$root/build-fuzz" -DCMAKE_UNITY_BUILD=ON -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" \
   -DLINKSIGHT_FUZZ=ON -DLINKSIGHT_BUILD_BENCH=OFF \
   "-DCMAKE_CXX_FLAGS=-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all" \

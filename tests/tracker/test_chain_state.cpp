@@ -10,7 +10,7 @@
 namespace linksight {
 namespace {
 
-constexpr double kPitchTolerance = 1e-12;  // [m]: issue 17 asks for 1e-6; the state gives rounding only
+constexpr double kStatePitchTolerance = 1e-12;  // [m]: issue 17 asks for 1e-6; the state gives rounding only
 constexpr double kDeg = std::numbers::pi / 180;
 
 // A random chain: every axis any unit vector (bends of any size).
@@ -30,7 +30,7 @@ TEST(ChainState, EveryPitchHoldsWhateverTheState) {
     const Nodes n = s.nodes(geo.pitch);
     ASSERT_EQ(n.size(), static_cast<std::size_t>(geo.count + 1));
     for (std::size_t k = 0; k + 1 < n.size(); ++k)
-      EXPECT_NEAR((n[k + 1] - n[k]).norm(), geo.pitch, kPitchTolerance) << "trial " << trial;
+      EXPECT_NEAR((n[k + 1] - n[k]).norm(), geo.pitch, kStatePitchTolerance) << "trial " << trial;
     for (int k = 0; k <= geo.count; ++k)
       EXPECT_EQ(s.centre(k, geo.pitch), n[static_cast<std::size_t>(k)]);  // one sum, one order
   }
@@ -48,7 +48,7 @@ TEST(ChainState, FromNodesKeepsDirectionsAndRestoresThePitch) {
   for (std::size_t k = 0; k < n.size(); ++k) n[k] = n[0] + 1.3 * (n[k] - n[0]);
   const Nodes fixed = chain_from_nodes(n, geo).nodes(geo.pitch);
   for (std::size_t k = 0; k + 1 < fixed.size(); ++k)
-    EXPECT_NEAR((fixed[k + 1] - fixed[k]).norm(), geo.pitch, kPitchTolerance);
+    EXPECT_NEAR((fixed[k + 1] - fixed[k]).norm(), geo.pitch, kStatePitchTolerance);
   // Coincident nodes carry the previous direction.
   n = s.nodes(geo.pitch);
   n[5] = n[4];
@@ -70,7 +70,7 @@ TEST(ChainState, BendsBeyondTheConeAreBentBackExactlyToIt) {
     for (const Eigen::Vector3d& a : s.axis) EXPECT_NEAR(a.norm(), 1.0, 1e-12);
     const Nodes n = s.nodes(geo.pitch);
     for (std::size_t k = 0; k + 1 < n.size(); ++k)
-      EXPECT_NEAR((n[k + 1] - n[k]).norm(), geo.pitch, kPitchTolerance);
+      EXPECT_NEAR((n[k + 1] - n[k]).norm(), geo.pitch, kStatePitchTolerance);
   }
   // A chain within the cone is left bit for bit.
   ChainState straight;

@@ -7,11 +7,11 @@
 namespace linksight {
 namespace {
 
-constexpr double kTol = 1e-12;
+constexpr double kRotationTol = 1e-12;
 
 void expect_orthonormal(const Eigen::Matrix3d& R) {
-  EXPECT_TRUE((R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), kTol)) << R;
-  EXPECT_NEAR(R.determinant(), 1.0, kTol);
+  EXPECT_TRUE((R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), kRotationTol)) << R;
+  EXPECT_NEAR(R.determinant(), 1.0, kRotationTol);
   EXPECT_TRUE(R.allFinite());
 }
 
@@ -25,17 +25,17 @@ TEST(Model, EquationsThreeToEight) {
   const double h = std::sqrt(delta.y() * delta.y() + delta.z() * delta.z());             // Eq. 6
   const Eigen::Matrix3d R = f.X_CK.linear();
   // Eq. 3: Z points from p_i to p_{i+1}.
-  EXPECT_TRUE(R.col(2).isApprox(delta / d, kTol));
+  EXPECT_TRUE(R.col(2).isApprox(delta / d, kRotationTol));
   // Eq. 5 with X1 = 0: X2 = (p_{i+1,3} - p_i3)/h, X3 = (p_i2 - p_{i+1,2})/h.
-  EXPECT_NEAR(R(0, 0), 0.0, kTol);
-  EXPECT_NEAR(R(1, 0), delta.z() / h, kTol);
-  EXPECT_NEAR(R(2, 0), -delta.y() / h, kTol);
+  EXPECT_NEAR(R(0, 0), 0.0, kRotationTol);
+  EXPECT_NEAR(R(1, 0), delta.z() / h, kRotationTol);
+  EXPECT_NEAR(R(2, 0), -delta.y() / h, kRotationTol);
   // Eq. 7: Y = Z × X = [-h/d, Δ1Δ2/(dh), Δ1Δ3/(dh)].
-  EXPECT_NEAR(R(0, 1), -h / d, kTol);
-  EXPECT_NEAR(R(1, 1), delta.x() * delta.y() / (d * h), kTol);
-  EXPECT_NEAR(R(2, 1), delta.x() * delta.z() / (d * h), kTol);
+  EXPECT_NEAR(R(0, 1), -h / d, kRotationTol);
+  EXPECT_NEAR(R(1, 1), delta.x() * delta.y() / (d * h), kRotationTol);
+  EXPECT_NEAR(R(2, 1), delta.x() * delta.z() / (d * h), kRotationTol);
   // Eq. 2: the origin is p_i.
-  EXPECT_TRUE(f.X_CK.translation().isApprox(p_i, kTol));
+  EXPECT_TRUE(f.X_CK.translation().isApprox(p_i, kRotationTol));
   expect_orthonormal(R);
 }
 
@@ -53,7 +53,7 @@ TEST(Model, RandomChainsGiveOrthonormalFrames) {
     ASSERT_EQ(frames.size(), 11u);  // M frames from M+1 points (Eq. 1)
     for (std::size_t i = 0; i < frames.size(); ++i) {
       expect_orthonormal(frames[i].X_CK.linear());
-      EXPECT_TRUE(frames[i].X_CK.translation().isApprox(nodes[i], kTol));
+      EXPECT_TRUE(frames[i].X_CK.translation().isApprox(nodes[i], kRotationTol));
       EXPECT_TRUE(
           frames[i].X_CK.linear().col(2).isApprox((nodes[i + 1] - nodes[i]).normalized(), 1e-9));
     }
@@ -70,7 +70,7 @@ TEST(Model, ChainFramesTurnOnlyWithTheBendEvenAlongCameraX) {
   const Nodes nodes = {{-0.02, 0.01, 0.6}, {0.0, 0.0, 0.6},    {0.045, 0.0, 0.6},
                        {0.09, 0.0, 0.6},   {0.13, 0.02, 0.61}, {0.17, 0.03, 0.6}};
   const auto frames = frames_from_nodes(nodes);
-  ASSERT_TRUE(frames[1].X_CK.linear().col(2).isApprox(Eigen::Vector3d::UnitX(), kTol));
+  ASSERT_TRUE(frames[1].X_CK.linear().col(2).isApprox(Eigen::Vector3d::UnitX(), kRotationTol));
   for (std::size_t i = 0; i < frames.size(); ++i) {
     expect_orthonormal(frames[i].X_CK.linear());
     if (i == 0) continue;
@@ -127,7 +127,7 @@ TEST(Model, ExactlyAlongCameraXIsFinite) {
                                                Eigen::Vector3d(0.1 + sign * 0.045, 0, 0.5));
     EXPECT_TRUE(f.carried);
     expect_orthonormal(f.X_CK.linear());
-    EXPECT_TRUE(f.X_CK.linear().col(0).isApprox(Eigen::Vector3d::UnitY(), kTol));  // the reference
+    EXPECT_TRUE(f.X_CK.linear().col(0).isApprox(Eigen::Vector3d::UnitY(), kRotationTol));  // the reference
   }
 }
 
@@ -136,7 +136,7 @@ TEST(Model, CoincidentPointsKeepReferenceAxis) {
       frame_from_points(Eigen::Vector3d(0.1, 0.2, 0.5), Eigen::Vector3d(0.1, 0.2, 0.5));
   EXPECT_TRUE(f.carried);
   expect_orthonormal(f.X_CK.linear());
-  EXPECT_TRUE(f.X_CK.linear().col(2).isApprox(Eigen::Vector3d::UnitZ(), kTol));
+  EXPECT_TRUE(f.X_CK.linear().col(2).isApprox(Eigen::Vector3d::UnitZ(), kRotationTol));
 }
 
 TEST(Model, RejectsFewerThanTwoNodes) {

@@ -16,7 +16,7 @@
 namespace linksight::sim {
 namespace {
 
-constexpr double kSigmaRelTol = 0.10;  // as the Sensor's plane test: sigma within 10%
+constexpr double kStageSigmaRelTol = 0.10;  // as the Sensor's plane test: sigma within 10%
 
 // Noise-free images of a plane facing the camera at depth `z` [m], every pixel hit.
 struct Plate {
@@ -85,7 +85,7 @@ TEST(SensorNoise, PlaneSigmaMatchesTheModelWithoutEmbree) {
     const double N = static_cast<double>(depth_m.size());
     const double sigma = std::sqrt(sum2 / N - (sum / N) * (sum / N));
     const double model = n.axial.sigma(z, 0.0);
-    EXPECT_NEAR(sigma / model, 1.0, kSigmaRelTol) << "z = " << z;
+    EXPECT_NEAR(sigma / model, 1.0, kStageSigmaRelTol) << "z = " << z;
     EXPECT_NEAR(sum / N, 0.0, 0.05 * model) << "z = " << z << ": biased";
   }
 }
@@ -174,7 +174,7 @@ TEST(SensorNoise, TwoTermFieldHasItsSigmaAndEachDirectionsCorrelation) {
         ++count;
       }
   }
-  EXPECT_NEAR(std::sqrt(rows[0] / count), kSigma, kSigmaRelTol * kSigma);
+  EXPECT_NEAR(std::sqrt(rows[0] / count), kSigma, kStageSigmaRelTol * kSigma);
   const auto model = [&](int l, double w, double big) {
     return (1 - kShare) * std::exp(-l * l / (4 * w * w)) + kShare * std::exp(-l * l / (4 * big * big));
   };
