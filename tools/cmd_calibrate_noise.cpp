@@ -32,6 +32,7 @@ struct CalibrateOptions {
   bool quiet = false;
   bool no_shape_correction = false;
   bool no_figures = false;
+  std::string structure = "one-field";  // sim::NoiseStructure
 };
 
 std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames) {
@@ -102,8 +103,7 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
 // reading; its median over the bin's own windows) with that shape added in quadrature [m].
 std::pair<double, double> model_read(const sim::DepthStats& s, const sim::NoiseFit& fit,
                                      const sim::DepthStats* shape, bool by_depth, std::size_t k) {
-  const double read =
-      std::sqrt(sim::window_response(fit.params.axial.correlation_px, s.window).variance_factor);
+  const double read = std::sqrt(sim::window_response(fit.params.axial, s.window).variance_factor);
   const sim::SigmaBin& b = (by_depth ? s.sigma_by_depth : s.sigma_by_angle)[k];
   double q = 0;
   if (shape != nullptr) {
@@ -231,7 +231,8 @@ int run_calibrate(const CalibrateOptions& o) {
     }
   }
   const sim::DepthStats* shape_p = o.no_shape_correction ? nullptr : &shape;
-  const sim::NoiseFit fit = sim::fit_noise(stats, sim::NoiseParams::sr300(), shape_p);
+  const sim::NoiseFit fit = sim::fit_noise(stats, sim::NoiseParams::sr300(), shape_p,
+                                           sim::parse_noise_structure(o.structure));
   io::StagedFiles out;
   out.open(o.out) << noise_yaml(fit, o.input, stats.frames);
   if (!o.report.empty()) {
@@ -275,6 +276,13 @@ Runner add_calibrate_noise(CLI::App& app) {
   app.add_flag("--no-shape-correction", o->no_shape_correction,
                "fit sigma as measured, without subtracting what the surfaces' own shape puts "
                "into the plane fit (estimated by re-rendering them without noise)");
+  app.add_option("--structure", o->structure,
+                 "the axial field fitted: one-field (one isotropic width, the sr300 preset's) "
+                 "or two-term (a pixel-scale and a low-frequency field, each with row and "
+                 "column widths; docs/sensor.md)")
+      ->check(CLI::IsMember({std::string(sim::to_string(sim::NoiseStructure::one_field)),
+                             std::string(sim::to_string(sim::NoiseStructure::two_term))}))
+      ->capture_default_str();
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
   return [o] { return run_calibrate(*o); };

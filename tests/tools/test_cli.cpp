@@ -1636,6 +1636,21 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   };
   for (const auto& t : terms)
     EXPECT_NEAR(t.fitted, t.preset, kPresetRelTol * std::abs(t.preset)) << t.what;
+  // The two-term structure (docs/sensor.md): a block a scene accepts, with both fields.
+  const fs::path two = dir / "two_term.yaml";
+  const CliRun r2 = run("calibrate-noise --structure two-term --quiet --input " +
+                            (real / "frames").string() + " --intrinsics " +
+                            (real / "intrinsics.json").string() + " --out " + two.string(),
+                        dir);
+  ASSERT_EQ(r2.code, 0) << r2.err;
+  std::ifstream block2(two);
+  std::stringstream text2;
+  text2 << block2.rdbuf();
+  EXPECT_NE(text2.str().find("# note: structure: "), std::string::npos) << text2.str();
+  std::ofstream(dir / "scene2.yaml") << "duration_s: 0.1\n" << text2.str();
+  const sim::Scene scene2 = sim::load_scene(dir / "scene2.yaml");
+  EXPECT_GT(scene2.noise.axial.correlation_px, 1.0);
+  EXPECT_GT(scene2.noise.axial.correlation_cols_px, 0.0);
 }
 
 TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
@@ -1646,6 +1661,8 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
   io::write_depth_png(dir / "in" / "zero.png",
                       io::DepthImage{640, 480, std::vector<std::uint16_t>(640 * 480, 0)});
   expect_refused("calibrate-noise --input " + (dir / "in").string() + k, "no valid pixel");
+  expect_refused("calibrate-noise --structure three --input " + (real / "frames").string() + k,
+                 "--structure");
   // Intrinsics that do not match the frames.
   io::Intrinsics small;
   small.width = 32;

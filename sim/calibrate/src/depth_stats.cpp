@@ -516,6 +516,130 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   return s;
 }
 
+namespace {
+
+// The residual maker I - X (X^T X)^-1 X^T of a least-squares fit of the first `terms` of
+// {1, x, y, x^2, xy, y^2} over an n x n window (pixel a at u = a % n, v = a / n).
+Eigen::MatrixXd residual_maker(int n, int terms) {
+  const int N = n * n;
+  Eigen::MatrixXd X(N, terms);
+  for (int a = 0; a < N; ++a) {
+    const double x = (a % n - 0.5 * (n - 1)) / n, y = (a / n - 0.5 * (n - 1)) / n;
+    const double all[6] = {1.0, x, y, x * x, x * y, y * y};
+    for (int t = 0; t < terms; ++t) X(a, t) = all[t];
+  }
+  const Eigen::MatrixXd H = X * (X.transpose() * X).ldlt().solve(X.transpose());
+  return Eigen::MatrixXd::Identity(N, N) - H;
+}
+
+// What the window estimator reads of one unit-variance field, as sums linear in the
+// field's covariance C, so that fields add by their shares: trace(C P) and trace(C Q)
+// (P, Q the plane's and the quadratic's residual makers: symmetric and idempotent, so
+// E|P x|^2 = trace(P C P) = trace(C P)), and the correlation sums of Q C Q summed as
+// depth_stats sums them (pooled over both directions at lags 1..4; along rows and along
+// columns at lags 1..kCorrelationLags).
+struct FieldSums {
+  double plane = 0, quad = 0;
+  std::array<double, 4> ab{}, aa{}, bb{};
+  std::array<double, kCorrelationLags> ab_r{}, aa_r{}, bb_r{}, ab_c{}, aa_c{}, bb_c{};
+  void add(const FieldSums& o, double w) {
+    plane += w * o.plane, quad += w * o.quad;
+    for (int l = 0; l < 4; ++l) ab[l] += w * o.ab[l], aa[l] += w * o.aa[l], bb[l] += w * o.bb[l];
+    for (int l = 0; l < kCorrelationLags; ++l) {
+      ab_r[l] += w * o.ab_r[l], aa_r[l] += w * o.aa_r[l], bb_r[l] += w * o.bb_r[l];
+      ab_c[l] += w * o.ab_c[l], aa_c[l] += w * o.aa_c[l], bb_c[l] += w * o.bb_c[l];
+    }
+  }
+};
+
+// The residual makers of one window side, made once per fit.
+struct WindowModel {
+  int n;
+  Eigen::MatrixXd P, Q;
+  explicit WindowModel(int side) : n(side), P(residual_maker(side, 3)), Q(residual_maker(side, 6)) {}
+
+  // One field: Gaussian-blurred white noise of widths w_u (along rows), w_v (along
+  // columns) correlates pixels du, dv apart by exp(-du^2 / (4 w_u^2)) exp(-dv^2 / (4 w_v^2));
+  // 0 is white. The covariance is the Kronecker product Cv (x) Cu: C M for a window-shaped
+  // M is Cu M Cv (n^3 per column instead of n^4), and trace(C M) sums n x n blocks.
+  // Without `correlations`, only the traces.
+  [[nodiscard]] FieldSums sums(double w_u, double w_v, bool correlations = true) const {
+    const int N = n * n;
+    auto kernel = [&](double w) {
+      Eigen::MatrixXd K = Eigen::MatrixXd::Identity(n, n);
+      if (w > 0)
+        for (int i = 0; i < n; ++i)
+          for (int j = 0; j < n; ++j) K(i, j) = std::exp(-double((i - j) * (i - j)) / (4 * w * w));
+      return K;
+    };
+    const Eigen::MatrixXd Cu = kernel(w_u), Cv = kernel(w_v);
+    auto trace_C = [&](const Eigen::MatrixXd& M) {  // trace(C M) = sum of C o M (symmetric)
+      double t = 0;
+      for (int vb = 0; vb < n; ++vb)
+        for (int va = 0; va < n; ++va)
+          t += Cv(va, vb) * Cu.cwiseProduct(M.block(va * n, vb * n, n, n)).sum();
+      return t;
+    };
+    FieldSums f;
+    f.plane = trace_C(P);
+    f.quad = trace_C(Q);
+    if (!correlations) return f;
+    Eigen::MatrixXd CQ(N, N);
+    for (int b = 0; b < N; ++b) {
+      const Eigen::Map<const Eigen::MatrixXd> m(Q.col(b).data(), n, n);
+      Eigen::Map<Eigen::MatrixXd>(CQ.col(b).data(), n, n) = Cu * m * Cv;
+    }
+    auto R = [&](int a, int b) { return Q.col(a).dot(CQ.col(b)); };  // Cov of Q x
+    Eigen::VectorXd diag(N);
+    for (int a = 0; a < N; ++a) diag[a] = R(a, a);
+    for (int lag = 1; lag <= kCorrelationLags && lag < n; ++lag) {
+      const auto l = static_cast<std::size_t>(lag - 1);
+      for (int a = 0; a < N; ++a) {
+        const int u = a % n, v = a / n;
+        if (u + lag < n) {
+          const double x = R(a, a + lag);
+          f.ab_r[l] += x, f.aa_r[l] += diag[a], f.bb_r[l] += diag[a + lag];
+        }
+        if (v + lag < n) {
+          const double x = R(a, a + lag * n);
+          f.ab_c[l] += x, f.aa_c[l] += diag[a], f.bb_c[l] += diag[a + lag * n];
+        }
+      }
+      if (lag <= 4) {
+        f.ab[l] = f.ab_r[l] + f.ab_c[l];
+        f.aa[l] = f.aa_r[l] + f.aa_c[l];
+        f.bb[l] = f.bb_r[l] + f.bb_c[l];
+      }
+    }
+    return f;
+  }
+
+  [[nodiscard]] WindowResponse response(const FieldSums& f) const {
+    const int N = n * n;
+    WindowResponse r;
+    r.variance_factor = f.plane / (N - 3);
+    r.quad_variance_factor = f.quad / (N - 6);
+    auto rho = [](double ab, double aa, double bb) { return aa > 0 && bb > 0 ? ab / std::sqrt(aa * bb) : 0.0; };
+    for (int l = 0; l < kCorrelationLags && l + 1 < n; ++l) {
+      r.correlation_rows[l] = rho(f.ab_r[l], f.aa_r[l], f.bb_r[l]);
+      r.correlation_cols[l] = rho(f.ab_c[l], f.aa_c[l], f.bb_c[l]);
+      if (l < 4) r.correlation[l] = rho(f.ab[l], f.aa[l], f.bb[l]);
+    }
+    return r;
+  }
+
+  // The two fields of `axial` by their shares.
+  [[nodiscard]] FieldSums sums(const AxialNoise& axial) const {
+    const double s = axial.low_share;
+    FieldSums f;
+    f.add(sums(axial.rows_px(), axial.cols_px()), 1 - s);
+    if (s > 0) f.add(sums(axial.low_rows_px, axial.low_cols_px), s);
+    return f;
+  }
+};
+
+}  // namespace
+
 WindowResponse window_response(double correlation_px, int window) {
   AxialNoise axial;
   axial.correlation_px = correlation_px;
@@ -529,73 +653,8 @@ WindowResponse window_response(const AxialNoise& axial, int window) {
     throw std::invalid_argument("window_response: window = " + std::to_string(window) +
                                 ": must be >= 5 px");
   fields::check(axial, "axial");  // the scene's ranges: widths > 0, low_share < 1
-  const int n = window, N = n * n;
-  // Cov of the noise: each field's Gaussian-blurred white noise correlates pixels du, dv
-  // apart by exp(-du^2 / (4 w_u^2) - dv^2 / (4 w_v^2)); the two fields add by their shares.
-  const auto add_field = [&](Eigen::MatrixXd& C, double w_u, double w_v, double share) {
-    if (!(w_u > 0)) {  // white
-      C.diagonal().array() += share;
-      return;
-    }
-    const double ku = 1.0 / (4 * w_u * w_u), kv = 1.0 / (4 * w_v * w_v);
-    for (int a = 0; a < N; ++a)
-      for (int b = 0; b < N; ++b) {
-        const double du = a % n - b % n, dv = a / n - b / n;
-        // (isotropic: one product, as the model before the two terms computed it)
-        const double e = ku == kv ? std::exp(-(du * du + dv * dv) * ku)
-                                  : std::exp(-(du * du * ku + dv * dv * kv));
-        C(a, b) += share == 1 ? e : share * e;
-      }
-  };
-  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(N, N);
-  const double s = axial.low_share;
-  add_field(C, axial.rows_px(), axial.cols_px(), 1 - s);
-  if (s > 0) add_field(C, axial.low_rows_px, axial.low_cols_px, s);
-  auto residual_maker = [&](int terms) {
-    Eigen::MatrixXd X(N, terms);
-    for (int a = 0; a < N; ++a) {
-      const double x = (a % n - 0.5 * (n - 1)) / n, y = (a / n - 0.5 * (n - 1)) / n;
-      const double all[6] = {1.0, x, y, x * x, x * y, y * y};
-      for (int t = 0; t < terms; ++t) X(a, t) = all[t];
-    }
-    const Eigen::MatrixXd H = X * (X.transpose() * X).ldlt().solve(X.transpose());
-    return Eigen::MatrixXd(Eigen::MatrixXd::Identity(N, N) - H);
-  };
-  WindowResponse r;
-  // The residual makers are symmetric and idempotent: E|P x|^2 = trace(P C P) = trace(C P).
-  const Eigen::MatrixXd P = residual_maker(3);  // the plane fit behind sigma
-  r.variance_factor = C.cwiseProduct(P).sum() / (N - 3);
-  // Cov of the quadratic fit's residuals, Q C Q, entry by entry where needed.
-  const Eigen::MatrixXd Q = residual_maker(6);
-  r.quad_variance_factor = C.cwiseProduct(Q).sum() / (N - 6);
-  const Eigen::MatrixXd CQ = C * Q;
-  auto R = [&](int a, int b) { return Q.col(a).dot(CQ.col(b)); };
-  Eigen::VectorXd diag(N);
-  for (int a = 0; a < N; ++a) diag[a] = R(a, a);
-  for (int lag = 1; lag <= kCorrelationLags && lag < n; ++lag) {
-    // Pooled over both directions (lags 1..4), and along rows and along columns, summed
-    // as depth_stats sums them.
-    double ab = 0, aa = 0, bb = 0;
-    double ab_r = 0, aa_r = 0, bb_r = 0, ab_c = 0, aa_c = 0, bb_c = 0;
-    for (int a = 0; a < N; ++a) {
-      const int u = a % n, v = a / n;
-      if (u + lag < n) {
-        const double x = R(a, a + lag);
-        ab += x, aa += diag[a], bb += diag[a + lag];
-        ab_r += x, aa_r += diag[a], bb_r += diag[a + lag];
-      }
-      if (v + lag < n) {
-        const double x = R(a, a + lag * n);
-        ab += x, aa += diag[a], bb += diag[a + lag * n];
-        ab_c += x, aa_c += diag[a], bb_c += diag[a + lag * n];
-      }
-    }
-    const auto l = static_cast<std::size_t>(lag - 1);
-    r.correlation_rows[l] = ab_r / std::sqrt(aa_r * bb_r);
-    r.correlation_cols[l] = ab_c / std::sqrt(aa_c * bb_c);
-    if (lag <= 4) r.correlation[l] = ab / std::sqrt(aa * bb);
-  }
-  return r;
+  const WindowModel m(window);
+  return m.response(m.sums(axial));
 }
 
 std::vector<io::DepthImage> rerender_surfaces(const std::vector<io::DepthImage>& frames,
@@ -620,17 +679,212 @@ std::vector<io::DepthImage> rerender_surfaces(const std::vector<io::DepthImage>&
   return out;
 }
 
-NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthStats* shape) {
+namespace {
+
+// Median plane-fit and quadratic-fit sigma of the windows the correlation is read on
+// (under the depth bins' angle limit) [m].
+std::pair<double, double> flat_sigmas(const DepthStats& s) {
+  std::vector<double> p, q;
+  for (const DepthStats::Window& w : s.samples)
+    if (w.angle < s.depth_bin_max_angle) p.push_back(w.sigma), q.push_back(w.sigma_quad);
+  return {median(p), median(q)};
+}
+
+// The two-term structure of the axial field (AxialNoise: a pixel-scale field of widths
+// correlation_px / correlation_cols_px, a low-frequency one of low_rows_px / low_cols_px
+// taking low_share of the variance) that the window estimators read as `s` does, in least
+// squares over: the residual correlation along rows and along columns at lags
+// 1..kCorrelationLags; the quadratic fit's variance over the plane fit's (how much of the
+// noise a quadratic takes up); and, at each other window side of s.scales, the plane and
+// quadratic variance over those at s.window (how the noise grows with the window: what pins
+// the low field's widths, which the correlation in one window hardly sees). `shape`'s
+// sigmas are taken out of the variances in quadrature. The sums are linear in the
+// covariance, so each field's are computed once per pair of widths on a grid and every
+// share is a weighted sum of them; a pattern search refines the grid's best. Writes the
+// fitted terms into `ax`; returns the response of the fitted field at s.window.
+WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, AxialNoise& ax,
+                             std::vector<std::string>& notes) {
+  auto less_shape = [](double x, double shape_x) {
+    return std::sqrt(std::max(x * x - shape_x * shape_x, 0.01 * x * x));
+  };
+  auto [plane, quad] = flat_sigmas(s);
+  if (shape != nullptr) {
+    const auto [sp, sq] = flat_sigmas(*shape);
+    plane = less_shape(plane, sp);
+    quad = less_shape(quad, sq);
+  }
+  const double ratio = plane > 0 ? std::min(1.0, quad * quad / (plane * plane)) : 1.0;
+  // The other window sides with 20 windows or more, and what they read against s.window.
+  struct Side {
+    WindowModel model;
+    double plane = 0, quad = 0;  // measured variance over s.window's plane / quadratic
+  };
+  std::vector<Side> sides;
+  const DepthStats::Scale* main = nullptr;
+  for (const DepthStats::Scale& sc : s.scales)
+    if (sc.window == s.window && sc.windows >= 20) main = &sc;
+  auto shape_scale = [&](int window) -> const DepthStats::Scale* {
+    if (shape == nullptr) return nullptr;
+    for (const DepthStats::Scale& sc : shape->scales)
+      if (sc.window == window && sc.windows >= 20) return &sc;
+    return nullptr;
+  };
+  auto noise_of = [&](const DepthStats::Scale& sc) {
+    const DepthStats::Scale* q = shape_scale(sc.window);
+    return std::pair{q ? less_shape(sc.sigma, q->sigma) : sc.sigma,
+                     q ? less_shape(sc.sigma_quad, q->sigma_quad) : sc.sigma_quad};
+  };
+  if (main != nullptr && main->sigma > 0 && main->sigma_quad > 0) {
+    const auto [mp, mq] = noise_of(*main);
+    for (const DepthStats::Scale& sc : s.scales) {
+      if (&sc == main || sc.windows < 20 || sc.window < 5 || sc.sigma <= 0) continue;
+      const auto [p, q] = noise_of(sc);
+      sides.push_back({WindowModel(sc.window), p * p / (mp * mp), q * q / (mq * mq)});
+    }
+  }
+  const WindowModel m(s.window);
+  // Every window's sums of one field; a share's mix is their weighted sum.
+  struct Sums {
+    double u = 0, v = 0;
+    FieldSums main;
+    std::vector<FieldSums> sides;
+  };
+  auto sums_of = [&](double u, double v) {
+    Sums x{u, v, m.sums(u, v), {}};
+    for (const Side& sd : sides) x.sides.push_back(sd.model.sums(u, v, false));
+    return x;
+  };
+  Sums mix;  // scratch, reused
+  auto mixed = [&](const Sums& a, const Sums* b, double share) -> const Sums& {
+    mix.main = FieldSums{};
+    mix.main.add(a.main, 1 - share);
+    if (b != nullptr) mix.main.add(b->main, share);
+    mix.sides.assign(sides.size(), FieldSums{});
+    for (std::size_t k = 0; k < sides.size(); ++k) {
+      mix.sides[k].add(a.sides[k], 1 - share);
+      if (b != nullptr) mix.sides[k].add(b->sides[k], share);
+    }
+    return mix;
+  };
+  auto cost = [&](const Sums& x) {
+    const WindowResponse r = m.response(x.main);
+    double c = 0;
+    for (int l = 0; l < kCorrelationLags; ++l) {
+      const double dr = r.correlation_rows[l] - s.correlation_rows[l];
+      const double dc = r.correlation_cols[l] - s.correlation_cols[l];
+      c += dr * dr + dc * dc;
+    }
+    const double dq = r.quad_variance_factor / r.variance_factor - ratio;
+    c += dq * dq;
+    for (std::size_t k = 0; k < sides.size(); ++k) {
+      // Per pixel of each window: the traces over their degrees of freedom.
+      const int N = sides[k].model.n * sides[k].model.n, M = s.window * s.window;
+      const double p = (x.sides[k].plane / (N - 3)) / (x.main.plane / (M - 3));
+      const double q = (x.sides[k].quad / (N - 6)) / (x.main.quad / (M - 6));
+      const double ep = std::log(p / sides[k].plane), eq = std::log(q / sides[k].quad);
+      c += ep * ep + eq * eq;
+    }
+    return c;
+  };
+  // Widths [px]: the pixel-scale field white or 0.4-4 px; the low one 1.5-20 px.
+  const std::vector<double> fine = {0.4, 0.6, 0.8, 1.0, 1.25, 1.5, 1.8, 2.2, 2.7, 3.3, 4.0};
+  const std::vector<double> coarse = {1.5, 2.0, 2.7, 3.5, 4.5, 6.0, 8.0, 10.5, 14.0, 20.0};
+  std::vector<Sums> pix = {sums_of(0, 0)}, low;
+  for (const double u : fine)
+    for (const double v : fine) pix.push_back(sums_of(u, v));
+  for (const double u : coarse)
+    for (const double v : coarse) low.push_back(sums_of(u, v));
+  constexpr int kShares = 20;  // 0, 0.05, ..., 0.95
+  double best = std::numeric_limits<double>::infinity();
+  Eigen::Matrix<double, 5, 1> x;  // pixel u, v; share; low u, v
+  for (const Sums& a : pix) {
+    if (const double c = cost(a); c < best) best = c, x << a.u, a.v, 0, coarse[0], coarse[0];
+    for (const Sums& b : low)
+      for (int k = 1; k < kShares; ++k) {
+        const double sh = 0.05 * k;
+        if (const double c = cost(mixed(a, &b, sh)); c < best) best = c, x << a.u, a.v, sh, b.u, b.v;
+      }
+  }
+  // Pattern search from the grid's best: a white pixel-scale field stays white, widths keep
+  // to their ranges, and a share of 0 leaves the low field's widths alone.
+  const bool white = x[0] == 0;
+  auto eval = [&](const Eigen::Matrix<double, 5, 1>& y) {
+    const Sums a = sums_of(y[0], y[1]);
+    if (y[2] == 0) return cost(a);
+    const Sums b = sums_of(y[3], y[4]);
+    return cost(mixed(a, &b, y[2]));
+  };
+  Eigen::Matrix<double, 5, 1> step;
+  step << 0.1, 0.1, 0.025, 0.5, 0.5;
+  Eigen::Matrix<double, 5, 1> lo, hi;
+  lo << 0.3, 0.3, 0, 0.5, 0.5;
+  hi << 4.0, 4.0, 0.95, 20, 20;
+  for (int it = 0; it < 40 && step[2] > 1e-3; ++it) {
+    bool moved = false;
+    for (int d = 0; d < 5; ++d) {
+      if ((white && d < 2) || (x[2] == 0 && d > 2)) continue;
+      for (const double sign : {-1.0, 1.0}) {
+        Eigen::Matrix<double, 5, 1> y = x;
+        y[d] = std::clamp(y[d] + sign * step[d], lo[d], hi[d]);
+        if (y[d] == x[d]) continue;
+        if (const double c = eval(y); c < best) best = c, x = y, moved = true;
+      }
+    }
+    if (!moved) step *= 0.5;
+  }
+  ax.correlation_px = x[0];
+  ax.correlation_cols_px = white ? 0 : x[1];
+  ax.low_share = x[2];
+  if (x[2] > 0) ax.low_rows_px = x[3], ax.low_cols_px = x[4];
+  const WindowResponse r = window_response(ax, s.window);
+  std::string line(600, '\0');
+  const int len = std::snprintf(
+      line.data(), line.size(),
+      "structure: pixel-scale field %.2f x %.2f px (rows x columns), low-frequency field "
+      "%.2f x %.2f px with %.2f of the variance; the model reads rows %.2f %.2f %.2f %.2f, "
+      "columns %.2f %.2f %.2f %.2f at lags 1-4 (measured rows %.2f %.2f %.2f %.2f, columns "
+      "%.2f %.2f %.2f %.2f), a quadratic/plane variance ratio %.2f (measured %.2f); %zu other "
+      "window sides",
+      ax.rows_px(), ax.cols_px(), ax.low_rows_px, ax.low_cols_px, ax.low_share,
+      r.correlation_rows[0], r.correlation_rows[1], r.correlation_rows[2], r.correlation_rows[3],
+      r.correlation_cols[0], r.correlation_cols[1], r.correlation_cols[2], r.correlation_cols[3],
+      s.correlation_rows[0], s.correlation_rows[1], s.correlation_rows[2], s.correlation_rows[3],
+      s.correlation_cols[0], s.correlation_cols[1], s.correlation_cols[2], s.correlation_cols[3],
+      r.quad_variance_factor / r.variance_factor, ratio, sides.size());
+  line.resize(static_cast<std::size_t>(std::max(len, 0)));
+  notes.push_back(line);
+  return r;
+}
+
+}  // namespace
+
+std::string_view to_string(NoiseStructure structure) {
+  return structure == NoiseStructure::one_field ? "one-field" : "two-term";
+}
+
+NoiseStructure parse_noise_structure(std::string_view name) {
+  if (name == "one-field") return NoiseStructure::one_field;
+  if (name == "two-term") return NoiseStructure::two_term;
+  throw std::invalid_argument("noise structure '" + std::string(name) +
+                              "': expected one-field or two-term");
+}
+
+NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthStats* shape,
+                   NoiseStructure structure) {
   const int window = s.window;
   NoiseFit fit;
   fit.params = start;
   AxialNoise& ax = fit.params.axial;
-  // The correlation width: bisection on the lag-1 reading (it grows with the width),
-  // checked against lag 2 in the notes.
+  // The one-field model: the correlation width by bisection on the lag-1 reading (it grows
+  // with the width), checked against lag 2 in the notes.
   ax.correlation_px = 0;
+  ax.correlation_cols_px = 0;
+  ax.low_share = 0;
   double variance_factor = window_response(0, window).variance_factor;
   const double rho1 = s.correlation[0];
-  if (rho1 > window_response(0.3, window).correlation[0]) {
+  if (structure == NoiseStructure::two_term) {
+    variance_factor = fit_structure(s, shape, ax, fit.notes).variance_factor;
+  } else if (rho1 > window_response(0.3, window).correlation[0]) {
     // Above about 4 px the reading saturates (near 0.9): a width there is not determined.
     double lo = 0.3, hi = 4.0;
     if (rho1 >= window_response(hi, window).correlation[0]) {

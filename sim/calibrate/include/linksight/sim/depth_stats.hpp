@@ -11,6 +11,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "linksight/io/depth_png.hpp"
@@ -190,9 +191,23 @@ struct NoiseFit {
   std::vector<std::string> notes;  ///< one line per term kept from `start`, and why
 };
 
+/// What fit_noise fits of the axial field's structure (AxialNoise): `one_field` the single
+/// isotropic field (the sr300 preset's); `two_term` a pixel-scale field with its own widths
+/// along rows and columns plus a low-frequency field with its own widths and share of the
+/// variance (docs/sensor.md: on the shared SR305 frames it does not yet read as the camera
+/// does, so it is not the default).
+enum class NoiseStructure { one_field, two_term };
+/// "one-field" / "two-term"; parse throws std::invalid_argument naming the value and choices.
+[[nodiscard]] std::string_view to_string(NoiseStructure structure);
+[[nodiscard]] NoiseStructure parse_noise_structure(std::string_view name);
+
 /// Fits the model to `stats`:
-/// - the correlation width whose window_response (at stats.window) matches the measured
-///   lag-1 correlation, and with it the plane-fit sigma corrected to the noise's own;
+/// - the structure (`two_term`): the two fields' widths and the low field's share whose
+///   window_response (at stats.window) reads, in least squares, the measured correlation
+///   along rows and along columns at lags 1..4 and the ratio of the quadratic fit's
+///   variance to the plane fit's (with `shape`'s taken out of it); `one_field`: the one
+///   isotropic width that matches the lag-1 correlation (pooled). With it the plane-fit
+///   sigma is corrected to the noise's own;
 /// - axial a, c, k_theta jointly, non-negative, minimizing the largest relative error
 ///   over the depth bins and the angle bins with 10 windows or more (what a comparison
 ///   with the camera sees), each bin's model its median over the bin's windows;
@@ -208,6 +223,7 @@ struct NoiseFit {
 /// shape's residual add in quadrature (at least a tenth of sigma is kept).
 /// Every term kept from `start`, and every measurement the model cannot follow, gets a note.
 [[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start,
-                                 const DepthStats* shape = nullptr);
+                                 const DepthStats* shape = nullptr,
+                                 NoiseStructure structure = NoiseStructure::one_field);
 
 }  // namespace linksight::sim
