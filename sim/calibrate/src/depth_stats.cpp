@@ -755,14 +755,14 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
     return x;
   };
   Sums mix;  // scratch, reused
-  auto mixed = [&](const Sums& a, const Sums* b, double share) -> const Sums& {
+  auto mixed = [&](const Sums& a, const Sums& b, double share) -> const Sums& {
     mix.main = FieldSums{};
     mix.main.add(a.main, 1 - share);
-    if (b != nullptr) mix.main.add(b->main, share);
+    mix.main.add(b.main, share);
     mix.sides.assign(sides.size(), FieldSums{});
     for (std::size_t k = 0; k < sides.size(); ++k) {
       mix.sides[k].add(a.sides[k], 1 - share);
-      if (b != nullptr) mix.sides[k].add(b->sides[k], share);
+      mix.sides[k].add(b.sides[k], share);
     }
     return mix;
   };
@@ -802,7 +802,7 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
     for (const Sums& b : low)
       for (int k = 1; k < kShares; ++k) {
         const double sh = 0.05 * k;
-        if (const double c = cost(mixed(a, &b, sh)); c < best) best = c, x << a.u, a.v, sh, b.u, b.v;
+        if (const double c = cost(mixed(a, b, sh)); c < best) best = c, x << a.u, a.v, sh, b.u, b.v;
       }
   }
   // Pattern search from the grid's best: a white pixel-scale field stays white, widths keep
@@ -812,7 +812,7 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
     const Sums a = sums_of(y[0], y[1]);
     if (y[2] == 0) return cost(a);
     const Sums b = sums_of(y[3], y[4]);
-    return cost(mixed(a, &b, y[2]));
+    return cost(mixed(a, b, y[2]));
   };
   Eigen::Matrix<double, 5, 1> step;
   step << 0.1, 0.1, 0.025, 0.5, 0.5;
