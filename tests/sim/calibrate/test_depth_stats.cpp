@@ -336,6 +336,7 @@ TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
   // x 2.12 px, share 0.58, low field 14.5 x 5 px for 1.2 x 2.0, 0.5, 5 x 8), so the test
   // asserts the readings, the anisotropy's direction and sigma.
   constexpr double kFitRhoTol = 0.05;    // seen: within 0.03
+  constexpr double kFitRatioTol = 0.05;  // quadratic over plane variance (seen: 0.02)
   constexpr double kFitSigmaRelTol = 0.15;  // seen: 9%
   const NoiseFit fit = fit_noise(s, NoiseParams::sr300(), nullptr, NoiseStructure::two_term);
   const AxialNoise& f = fit.params.axial;
@@ -345,7 +346,7 @@ TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
     EXPECT_NEAR(fr.correlation_cols[l], s.correlation_cols[l], kFitRhoTol) << "columns, lag " << l + 1;
   }
   EXPECT_NEAR(fr.quad_variance_factor / fr.variance_factor,
-              r.quad_variance_factor / r.variance_factor, kFitRhoTol);
+              r.quad_variance_factor / r.variance_factor, kFitRatioTol);
   EXPECT_GT(f.cols_px(), f.rows_px());
   EXPECT_GT(f.low_share, 0.2);
   EXPECT_NEAR(f.sigma(0.6, 0.0), n.axial.a, kFitSigmaRelTol * n.axial.a);
