@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
@@ -138,6 +140,40 @@ inline std::vector<io::DepthImage> read_depth_frames(const std::string& frames,
     images.push_back(io::read_depth_png(p));
   }
   return images;
+}
+
+/// --half: the frames of `half` (sim::FrameHalf, by name) out of `images`, the rest
+/// dropped; io::InputError names `source`, the option and the value.
+inline std::vector<io::DepthImage> take_half(std::vector<io::DepthImage> images,
+                                             const io::Intrinsics& K, const std::string& half,
+                                             const std::string& source) {
+  std::vector<std::size_t> keep;
+  try {
+    keep = sim::frame_half(images, K, sim::parse_frame_half(half));
+  } catch (const std::invalid_argument& e) {
+    throw io::InputError(source + ": --half " + half + ": " + e.what());
+  }
+  if (keep.empty())
+    throw io::InputError(source + ": --half " + half + ": no frame in that half of " +
+                         std::to_string(images.size()));
+  std::vector<io::DepthImage> out;
+  for (const std::size_t k : keep) out.push_back(std::move(images[k]));
+  return out;
+}
+
+/// The --half option (take_half), its values checked by name.
+inline CLI::Option* add_half_option(CLI::App& app, std::string& half, const std::string& what) {
+  std::vector<std::string> names;
+  for (const sim::FrameHalf h : {sim::FrameHalf::all, sim::FrameHalf::even, sim::FrameHalf::odd,
+                                 sim::FrameHalf::near, sim::FrameHalf::far})
+    names.emplace_back(sim::to_string(h));
+  return app
+      .add_option("--half", half,
+                  what + ": all, or one half of its frames for a held-out check (fit on one, "
+                         "compare on the other): even / odd positions in its order, or the "
+                         "near / far half by median depth (docs/sensor.md)")
+      ->check(CLI::IsMember(names))
+      ->capture_default_str();
 }
 
 /// A recording's statistics as tools/plot_fidelity.py draws them (lengths in mm, angles in

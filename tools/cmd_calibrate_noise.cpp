@@ -33,12 +33,16 @@ struct CalibrateOptions {
   bool no_shape_correction = false;
   bool no_figures = false;
   std::string structure = "one-field";  // sim::NoiseStructure
+  std::string half = "all";             // sim::FrameHalf
 };
 
-std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames) {
+std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames,
+                       const std::string& half) {
   const sim::NoiseParams& n = fit.params;
   std::ostringstream y;
-  y << "# linksight calibrate-noise: fitted to " << frames << " frames of " << source << "\n";
+  y << "# linksight calibrate-noise: fitted to " << frames << " frames of " << source;
+  if (half != "all") y << " (--half " << half << ")";
+  y << "\n";
   for (const std::string& note : fit.notes) y << "# note: " << note << "\n";
   n.validate();  // a fit outside the model's ranges would write a block no scene loads
   y << sim::noise_yaml(n);  // every term in full: it reads back to the same NoiseParams
@@ -90,6 +94,9 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
           {"projector_side", s.projector_side},
           {"baseline_mm", s.baseline * 1e3},
           {"flying_rate", s.flying_rate},
+          {"flying_band_rate", s.flying_band_rate},
+          {"band_side_pixels", s.band_side_pixels},
+          {"band_side_flying", s.band_side_flying},
           {"flying_position", s.flying_position},
           {"flying_position_iqr", s.flying_iqr},
           {"flying_per_discontinuity", s.flying_per_edge},
@@ -196,7 +203,8 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
          : s.projector_side > 0 ? "image-right"
                                 : "undecided")
      << ", baseline " << s.baseline * 1e3 << " mm\n"
-     << "flying pixels: " << 100 * s.flying_rate << "% of the valid pixels next to a band, at "
+     << "flying pixels: " << 100 * s.flying_rate << "% of the valid pixels next to a band ("
+     << 100 * s.flying_band_rate << "% of those within 2 px of an invalid run), at "
      << std::setprecision(2) << s.flying_position << " (IQR " << s.flying_iqr
      << ") of the way from near to far, " << std::setprecision(3) << s.flying_per_edge
      << " of the discontinuities hold a lone one\n";
@@ -211,7 +219,8 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
 int run_calibrate(const CalibrateOptions& o) {
   const io::Intrinsics K = io::read_intrinsics(o.intrinsics);
   const std::vector<io::DepthImage> frames =
-      read_depth_frames(o.input, K, o.intrinsics, "calibrate-noise");
+      take_half(read_depth_frames(o.input, K, o.intrinsics, "calibrate-noise"), K, o.half,
+                o.input);
   sim::DepthStats stats;
   try {
     stats = sim::depth_stats(frames, K);
@@ -234,7 +243,7 @@ int run_calibrate(const CalibrateOptions& o) {
   const sim::NoiseFit fit = sim::fit_noise(stats, sim::NoiseParams::sr300(), shape_p,
                                            sim::parse_noise_structure(o.structure));
   io::StagedFiles out;
-  out.open(o.out) << noise_yaml(fit, o.input, stats.frames);
+  out.open(o.out) << noise_yaml(fit, o.input, stats.frames, o.half);
   if (!o.report.empty()) {
     std::error_code ec;
     fs::create_directories(o.report, ec);
@@ -283,6 +292,7 @@ Runner add_calibrate_noise(CLI::App& app) {
       ->check(CLI::IsMember({std::string(sim::to_string(sim::NoiseStructure::one_field)),
                              std::string(sim::to_string(sim::NoiseStructure::two_term))}))
       ->capture_default_str();
+  add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
   return [o] { return run_calibrate(*o); };

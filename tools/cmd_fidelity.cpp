@@ -30,12 +30,14 @@ struct FidelityOptions {
   bool rerender = false;
   std::string noise_scene;  // --rerender: the noise block of this scene (default: sr300)
   bool no_figures = false, quiet = false, force = false;
+  std::string half = "all";  // sim::FrameHalf of --real (and so of what --rerender renders)
 };
 
 // A recording: DIR/depth (as `linksight render` writes), DIR/frames, or DIR itself; the
 // intrinsics beside the frames' folder unless given.
+// `half`: of its frames (take_half).
 sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, const char* role,
-                        const sim::NoiseParams* rerender = nullptr) {
+                        const std::string& half, const sim::NoiseParams* rerender = nullptr) {
   try {
     fs::path frames = dir, k = intrinsics;
     std::error_code ec;
@@ -48,7 +50,7 @@ sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, c
     if (k.empty()) k = fs::path(dir) / "intrinsics.json";
     const io::Intrinsics K = io::read_intrinsics(k);
     std::vector<io::DepthImage> images =
-        read_depth_frames(frames.string(), K, k.string(), "fidelity");
+        take_half(read_depth_frames(frames.string(), K, k.string(), "fidelity"), K, half, dir);
     try {
       // The recording's own surfaces through the simulated camera: same geometry, so
       // what differs is the sensor model.
@@ -125,6 +127,7 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
   out.push_back({"projector side (-1 left, +1 right)", double(r.projector_side), double(s.projector_side)});
   out.push_back({"baseline_mm", r.baseline * 1e3, s.baseline * 1e3});
   out.push_back({"flying rate", r.flying_rate, s.flying_rate});
+  out.push_back({"flying rate beside bands", r.flying_band_rate, s.flying_band_rate});
   out.push_back({"flying position", r.flying_position, s.flying_position});
   out.push_back({"holes per frame", r.holes_per_frame, s.holes_per_frame});
   // 0 px where no hole was seen, as the other statistics read 0 when not measured.
@@ -137,14 +140,14 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
 
 int run_fidelity(const FidelityOptions& o) {
   io::StagedDir out(o.out, o.force);  // refuses an existing --out before any work
-  const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real");
+  const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real", o.half);
   if (o.rerender == !o.sim.empty())
     throw io::InputError("fidelity: give either --sim DIR or --rerender");
   sim::NoiseParams noise = sim::NoiseParams::sr300();
   if (!o.noise_scene.empty()) noise = sim::load_scene(o.noise_scene).noise;
   const sim::DepthStats simulated =
-      o.rerender ? measure(o.real, o.real_intrinsics, "rerender", &noise)
-                 : measure(o.sim, o.sim_intrinsics, "sim");
+      o.rerender ? measure(o.real, o.real_intrinsics, "rerender", o.half, &noise)
+                 : measure(o.sim, o.sim_intrinsics, "sim", "all");
   const std::vector<Row> table = rows(real, simulated);
   std::ostringstream text;
   text << std::left << std::setw(44) << "statistic" << std::right << std::setw(10) << "real"
@@ -158,7 +161,8 @@ int run_fidelity(const FidelityOptions& o) {
                       {"sim", json_number(r.sim)}, {"ratio", json_number(ratio)}});
   }
   io::write_file_atomic(out.path() / "fidelity.txt", [&](std::ostream& f) { f << text.str(); });
-  const nlohmann::json j = {{"real", o.real}, {"sim", o.rerender ? "rerender" : o.sim}, {"rows", j_rows},
+  const nlohmann::json j = {{"real", o.real}, {"half", o.half},
+                            {"sim", o.rerender ? "rerender" : o.sim}, {"rows", j_rows},
                             {"series", {{"real", stats_series(real)}, {"sim", stats_series(simulated)}}}};
   io::write_file_atomic(out.path() / "fidelity.json", [&](std::ostream& f) { f << j.dump(1) << "\n"; });
   // Figures into the staging directory, so the output appears whole; a failed plot is a
@@ -192,6 +196,7 @@ Runner add_fidelity(CLI::App& app) {
   app.add_option("--sim-intrinsics", o->sim_intrinsics, "default: DIR/intrinsics.json");
   app.add_option("--out", o->out, "output directory (fidelity.txt, fidelity.json, figures/)")
       ->required();
+  add_half_option(app, o->half, "--real (and what --rerender renders of it; a --sim recording is read whole)");
   app.add_flag("--force", o->force, "replace an existing output directory");
   app.add_flag("--no-figures", o->no_figures, "skip the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");

@@ -1738,6 +1738,41 @@ background:
                  "nowhere");
 }
 
+// A held-out check (issue 20, part 3): calibrate-noise fits one half of the frames,
+// fidelity compares the other half's real frames with their surfaces re-rendered through
+// that fit; the halves are named in the outputs, and a bad or empty half is refused.
+TEST_F(Cli, HeldOutHalvesFitOnOneCompareOnTheOther) {
+  const fs::path& real = kSr305;
+  const std::string k = " --intrinsics " + (real / "intrinsics.json").string();
+  const fs::path block = dir / "even.yaml";
+  CliRun r = run("calibrate-noise --quiet --half even --input " + (real / "frames").string() + k +
+                     " --out " + block.string(),
+                 dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream in(block);
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_NE(text.str().find("fitted to 6 frames"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("(--half even)"), std::string::npos) << text.str();
+  std::ofstream(dir / "scene.yaml") << "duration_s: 0.1\n" << text.str();
+  const fs::path out2 = dir / "odd";
+  r = run("fidelity --real " + real.string() + " --rerender --half odd --noise-scene " +
+              (dir / "scene.yaml").string() + " --no-figures --out " + out2.string(),
+          dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream in2(out2 / "fidelity.json");
+  const nlohmann::json j = nlohmann::json::parse(in2);
+  EXPECT_EQ(j["half"], "odd");
+  EXPECT_GT(fidelity_row(j, "flying rate beside bands")["real"].get<double>(), 0.0);
+  expect_refused("calibrate-noise --half middle --input " + (real / "frames").string() + k,
+                 "--half");
+  // One frame: its odd half is empty.
+  fs::create_directories(dir / "one");
+  fs::copy_file(real / "frames" / "0.png", dir / "one" / "0.png");
+  expect_refused("calibrate-noise --half odd --input " + (dir / "one").string() + k,
+                 "--half odd: no frame");
+}
+
 TEST_F(Cli, RealDepthPngWithIntrinsicsAndCrop) {
   const std::string input = std::string(LINKSIGHT_TEST_DATA_DIR) + "/sr305/100.png";
   const CliRun r = run(

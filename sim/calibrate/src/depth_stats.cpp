@@ -11,6 +11,7 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "linksight/sim/sensor.hpp"
 #include "linksight/tracker/quantile.hpp"
@@ -162,7 +163,8 @@ class Frame {
   // Discontinuities along rows, between two stable valid pixels (each with a valid
   // neighbour on its outer side within a quarter of the jump).
   void edges(std::vector<Edge>& out, long& flying, long& lone, long& neighbours,
-             std::vector<double>& positions) const {
+             std::vector<double>& positions, long& side_pixels, long& side_flying) const {
+    std::vector<int> beside;  // this discontinuity's pixels beside its invalid runs
     const double calm = 0.25 * p_.edge_jump;
     for (int v = 0; v < H_; ++v) {
       int u = 1;
@@ -210,6 +212,24 @@ class Frame {
           // A lone pixel in the gap: what a flying pixel makes. A side face seen at grazing
           // incidence leaves a run of them instead.
           if (between == 1) ++lone;
+          // Beside the bands (DepthStats::band_side_pixels): the valid pixels within 2 px
+          // of each invalid run, from A - 1 to B + 1 (both stable sides' pixels are valid).
+          beside.clear();
+          for (int w = u + 1; w < b; ++w) {
+            if (valid(w, v) || (w > u + 1 && !valid(w - 1, v))) continue;  // a run's start
+            int end = w;
+            while (end + 1 < b && !valid(end + 1, v)) ++end;
+            for (const int x : {w - 2, w - 1, end + 1, end + 2})
+              if (x >= u - 1 && x <= b + 1 && valid(x, v)) beside.push_back(x);
+          }
+          std::sort(beside.begin(), beside.end());
+          beside.erase(std::unique(beside.begin(), beside.end()), beside.end());
+          side_pixels += static_cast<long>(beside.size());
+          for (const int x : beside) {
+            if (x <= u || x >= b) continue;  // a stable side: not between them
+            const double pos = (z(x, v) - e.z_near) / (e.z_far - e.z_near);
+            if (pos > 0.1 && pos < 0.9) ++side_flying;
+          }
           if (e.invalid > 0 || b == u + 1) neighbours += here_valid;
           out.push_back(e);
         }
@@ -404,7 +424,8 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
           static_cast<double>(p.min_valid) * n * n / (static_cast<double>(p.window) * p.window))));
       fr.windows(n, min_valid, scale_samples[w], nullptr);
     }
-    fr.edges(edges, flying, lone, s.band_neighbours, positions);
+    fr.edges(edges, flying, lone, s.band_neighbours, positions, s.band_side_pixels,
+             s.band_side_flying);
     fr.holes(s.hole_sizes);
   }
   if (s.valid_px == 0) throw std::invalid_argument("depth statistics: no valid pixel in any frame");
@@ -507,6 +528,9 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   }
   s.flying = flying;
   s.flying_rate = s.band_neighbours > 0 ? static_cast<double>(flying) / s.band_neighbours : 0;
+  s.flying_band_rate = s.band_side_pixels > 0 ? static_cast<double>(s.band_side_flying) /
+                                                    static_cast<double>(s.band_side_pixels)
+                                              : 0;
   s.flying_position = median(positions);
   s.flying_iqr = positions.empty() ? 0 : quantile(positions, 0.75) - quantile(positions, 0.25);
   const int crossings = s.near_left.edges + s.near_right.edges;
@@ -867,6 +891,52 @@ NoiseStructure parse_noise_structure(std::string_view name) {
   if (name == "two-term") return NoiseStructure::two_term;
   throw std::invalid_argument("noise structure '" + std::string(name) +
                               "': expected one-field or two-term");
+}
+
+std::string_view to_string(FrameHalf half) {
+  switch (half) {
+    case FrameHalf::all: return "all";
+    case FrameHalf::even: return "even";
+    case FrameHalf::odd: return "odd";
+    case FrameHalf::near: return "near";
+    case FrameHalf::far: return "far";
+  }
+  return "?";
+}
+
+FrameHalf parse_frame_half(std::string_view name) {
+  for (const FrameHalf h :
+       {FrameHalf::all, FrameHalf::even, FrameHalf::odd, FrameHalf::near, FrameHalf::far})
+    if (name == to_string(h)) return h;
+  throw std::invalid_argument("frame half '" + std::string(name) +
+                              "': expected all, even, odd, near or far");
+}
+
+std::vector<std::size_t> frame_half(const std::vector<io::DepthImage>& frames,
+                                    const io::Intrinsics& intrinsics, FrameHalf half) {
+  std::vector<std::size_t> out;
+  if (half == FrameHalf::all || half == FrameHalf::even || half == FrameHalf::odd) {
+    for (std::size_t i = 0; i < frames.size(); ++i)
+      if (half == FrameHalf::all || (i % 2 == 0) == (half == FrameHalf::even)) out.push_back(i);
+    return out;
+  }
+  std::vector<std::pair<double, std::size_t>> by_depth;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    std::vector<double> z;
+    for (const std::uint16_t d : frames[i].data)
+      if (d != 0) z.push_back(d * intrinsics.depth_scale);
+    if (z.empty())
+      throw std::invalid_argument("frame " + std::to_string(i) +
+                                  " has no valid pixel: no median depth for a near/far half");
+    by_depth.emplace_back(median_in_place(z), i);
+  }
+  std::sort(by_depth.begin(), by_depth.end());
+  const std::size_t near = (by_depth.size() + 1) / 2;
+  for (std::size_t j = half == FrameHalf::near ? 0 : near;
+       j < (half == FrameHalf::near ? near : by_depth.size()); ++j)
+    out.push_back(by_depth[j].second);
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthStats* shape,

@@ -11,6 +11,9 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
 
 #include "linksight/io/frames.hpp"
 #include "linksight/sim/depth_stats.hpp"
@@ -251,6 +254,180 @@ TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
   edges("near surface right", r.near_right, s.near_right);
   EXPECT_NEAR(s.flying_rate / r.flying_rate, 1.0, kFidelityEdgeTol);
   EXPECT_EQ(s.projector_side, r.projector_side);
+}
+
+// Validation that is not in-sample (issue 20, part 3): the one-field fit as
+// calibrate-noise makes it (shape-corrected) on one half of the real frames, compared with
+// the other half's real frames through fidelity's ruler (their surfaces re-rendered with
+// the fit). Both alternate halves and both depth halves, each way round.
+struct HeldOut {
+  FrameHalf fit, test;
+};
+constexpr HeldOut kHeldOut[] = {{FrameHalf::even, FrameHalf::odd},
+                                {FrameHalf::odd, FrameHalf::even},
+                                {FrameHalf::near, FrameHalf::far},
+                                {FrameHalf::far, FrameHalf::near}};
+// The issue's band for a held-out ratio sim/real.
+constexpr double kHeldOutLo = 0.8, kHeldOutHi = 1.25;
+
+std::vector<io::DepthImage> half_of(const std::vector<io::DepthImage>& all,
+                                    const io::Intrinsics& K, FrameHalf half) {
+  std::vector<io::DepthImage> out;
+  for (const std::size_t k : frame_half(all, K, half)) out.push_back(all[k]);
+  return out;
+}
+
+struct HeldOutStats {
+  DepthStats fit;          // the fit half, real (which bins it covers)
+  DepthStats real, sim;    // the test half: real, and re-rendered with the fit
+};
+
+HeldOutStats held_out(const std::vector<io::DepthImage>& all, const io::Intrinsics& K,
+                      const HeldOut& h) {
+  const std::vector<io::DepthImage> fit_frames = half_of(all, K, h.fit);
+  const std::vector<io::DepthImage> test_frames = half_of(all, K, h.test);
+  HeldOutStats out;
+  out.fit = depth_stats(fit_frames, K);
+  NoiseParams quiet = NoiseParams::off();
+  quiet.quantize = true;
+  const DepthStats shape = depth_stats(rerender_surfaces(fit_frames, K, quiet, 1), K);
+  const NoiseParams fitted = fit_noise(out.fit, NoiseParams::sr300(), &shape).params;
+  out.real = depth_stats(test_frames, K);
+  out.sim = depth_stats(rerender_surfaces(test_frames, K, fitted, 1), K);
+  return out;
+}
+
+void expect_in_band(double sim, double real, const std::string& what) {
+  ASSERT_GT(real, 0) << what;
+  EXPECT_GE(sim / real, kHeldOutLo) << what << ": sim " << sim << ", real " << real;
+  EXPECT_LE(sim / real, kHeldOutHi) << what << ": sim " << sim << ", real " << real;
+}
+
+// Each sigma bin that both the test half (real and re-rendered) and the fit half hold 10
+// windows of. A depth the fit half does not reach is an extrapolation of a + c z^2, not a
+// check of the fit: the near half reaches 0.8-0.9 m with too few windows, and the far half
+// read there 0.76 of the camera (docs/sensor.md).
+int expect_sigma_bins(const std::vector<SigmaBin>& fit, const std::vector<SigmaBin>& real,
+                      const std::vector<SigmaBin>& sim, const std::string& what) {
+  int bins = 0;
+  for (std::size_t b = 0; b < real.size() && b < sim.size() && b < fit.size(); ++b) {
+    if (fit[b].windows < 10 || real[b].windows < 10 || sim[b].windows < 10) continue;
+    ++bins;
+    expect_in_band(sim[b].sigma, real[b].sigma,
+                   what + " " + std::to_string(real[b].lo) + "-" + std::to_string(real[b].hi));
+  }
+  return bins;
+}
+
+TEST(DepthStats, FrameHalvesSplitTheRecording) {
+  io::Intrinsics K;
+  const std::vector<io::DepthImage> frames = real_frames(K);
+  for (const auto& [a, b] : {std::pair{FrameHalf::even, FrameHalf::odd},
+                             std::pair{FrameHalf::near, FrameHalf::far}}) {
+    std::vector<std::size_t> both = frame_half(frames, K, a);
+    const std::vector<std::size_t> other = frame_half(frames, K, b);
+    EXPECT_EQ(both.size(), 6u);  // ceil(11 / 2)
+    EXPECT_EQ(other.size(), 5u);
+    both.insert(both.end(), other.begin(), other.end());
+    std::sort(both.begin(), both.end());
+    EXPECT_EQ(both, frame_half(frames, K, FrameHalf::all)) << to_string(a);
+  }
+  EXPECT_EQ(frame_half(frames, K, FrameHalf::odd), (std::vector<std::size_t>{1, 3, 5, 7, 9}));
+  // The near half's frames are nearer: every one's median depth below every far one's.
+  auto median_z = [&](std::size_t i) {
+    std::vector<double> z;
+    for (const std::uint16_t d : frames[i].data)
+      if (d != 0) z.push_back(d * K.depth_scale);
+    std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
+    return z[z.size() / 2];
+  };
+  for (const std::size_t n : frame_half(frames, K, FrameHalf::near))
+    for (const std::size_t f : frame_half(frames, K, FrameHalf::far))
+      EXPECT_LE(median_z(n), median_z(f)) << n << " near, " << f << " far";
+  for (const FrameHalf h :
+       {FrameHalf::all, FrameHalf::even, FrameHalf::odd, FrameHalf::near, FrameHalf::far})
+    EXPECT_EQ(parse_frame_half(to_string(h)), h);
+  try {
+    (void)parse_frame_half("middle");
+    ADD_FAILURE() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'middle'"), std::string::npos) << e.what();
+  }
+  std::vector<io::DepthImage> blank(1, frames[0]);
+  std::fill(blank[0].data.begin(), blank[0].data.end(), 0);
+  EXPECT_THROW((void)frame_half(blank, K, FrameHalf::near), std::invalid_argument);
+}
+
+// What the one-field model reproduces out of sample, with the issue's band 0.8-1.25:
+// plane-fit sigma per depth bin (where the fit half has windows) and per angle bin, the
+// pooled lag-1 correlation; the edge bands within the in-sample test's 30%, and the
+// projector's side. What it does not (the structure statistics, flying pixels and holes)
+// is asserted in HeldOutFidelity.IssueTwentyTargets, outside CI and red.
+TEST(DepthStats, HeldOutFidelityOfTheOneFieldFit) {
+  io::Intrinsics K;
+  const std::vector<io::DepthImage> all = real_frames(K);
+  for (const HeldOut& h : kHeldOut) {
+    const std::string dir =
+        "fit on " + std::string(to_string(h.fit)) + ", test on " + std::string(to_string(h.test));
+    SCOPED_TRACE(dir);
+    const HeldOutStats s = held_out(all, K, h);
+    EXPECT_GE(expect_sigma_bins(s.fit.sigma_by_depth, s.real.sigma_by_depth, s.sim.sigma_by_depth,
+                                "sigma by depth"),
+              2);
+    EXPECT_GE(expect_sigma_bins(s.fit.sigma_by_angle, s.real.sigma_by_angle, s.sim.sigma_by_angle,
+                                "sigma by angle"),
+              4);
+    expect_in_band(s.sim.correlation[0], s.real.correlation[0], "lag-1 correlation");
+    for (const auto& [name, re, se] : {std::tuple{"near left", s.real.near_left, s.sim.near_left},
+                                       std::tuple{"near right", s.real.near_right, s.sim.near_right}}) {
+      ASSERT_GE(re.edges, 50) << name;
+      EXPECT_NEAR(se.invalid_1px / re.invalid_1px, 1.0, kFidelityEdgeTol) << name;
+      EXPECT_NEAR(se.invalid_2px / re.invalid_2px, 1.0, kFidelityEdgeTol) << name;
+    }
+    EXPECT_EQ(s.sim.projector_side, s.real.projector_side);
+  }
+}
+
+// The issue's held-out targets for what the one-field model does not reproduce (issue 20):
+// quadratic-fit sigma per angle bin, the correlation along rows and along columns at lags
+// 1-4 (where the camera's is under 0.2, within 0.05 instead of a ratio), the
+// quadratic-beats-plane share, the flying-pixel rate (beside the bands) and the holes per
+// frame within 0.8-1.25, and neighbour jumps > 20 mm within a factor of 2 (of at least 1
+// per million: the camera shows none). Red today (docs/sensor.md gives each ratio); label
+// fidelity-full, outside CI, as robustness-full. Part 4's preset is to turn it green.
+TEST(HeldOutFidelity, IssueTwentyTargets) {
+  io::Intrinsics K;
+  const std::vector<io::DepthImage> all = real_frames(K);
+  for (const HeldOut& h : kHeldOut) {
+    SCOPED_TRACE("fit on " + std::string(to_string(h.fit)) + ", test on " +
+                 std::string(to_string(h.test)));
+    const HeldOutStats s = held_out(all, K, h);
+    (void)expect_sigma_bins(s.fit.sigma_quad_by_angle, s.real.sigma_quad_by_angle,
+                            s.sim.sigma_quad_by_angle, "quadratic sigma by angle");
+    // A ratio of correlations near zero says nothing (the camera's rows read -0.13 at
+    // lag 4): under kSmallCorrelation, within kCorrelationAbsTol instead.
+    constexpr double kSmallCorrelation = 0.2, kCorrelationAbsTol = 0.05;
+    const auto correlation = [&](double sim, double real, const std::string& what) {
+      if (std::abs(real) >= kSmallCorrelation) return expect_in_band(sim, real, what);
+      EXPECT_NEAR(sim, real, kCorrelationAbsTol) << what;
+    };
+    for (int l = 0; l < 4; ++l) {
+      correlation(s.sim.correlation_rows[l], s.real.correlation_rows[l],
+                  "rows, lag " + std::to_string(l + 1));
+      correlation(s.sim.correlation_cols[l], s.real.correlation_cols[l],
+                  "columns, lag " + std::to_string(l + 1));
+    }
+    expect_in_band(s.sim.quad_beats_plane, s.real.quad_beats_plane, "quadratic beats plane");
+    expect_in_band(s.sim.flying_band_rate, s.real.flying_band_rate, "flying rate beside bands");
+    expect_in_band(s.sim.holes_per_frame, s.real.holes_per_frame, "holes per frame");
+    const auto per_million = [](const DepthStats& d) {
+      return d.neighbour_pairs > 0 ? 1e6 * static_cast<double>(d.neighbour_jumps) /
+                                         static_cast<double>(d.neighbour_pairs)
+                                   : 0.0;
+    };
+    EXPECT_LE(per_million(s.sim), 2 * std::max(per_million(s.real), 1.0));
+    EXPECT_GE(per_million(s.sim), 0.5 * per_million(s.real));
+  }
 }
 
 // The estimator's reading of correlated noise: white reads white with the plane fit's own
@@ -513,6 +690,31 @@ TEST(DepthStats, NeighbourJumpsCountValidPairsAcrossAStep) {
   const DepthStats g = depth_stats({gap}, K);
   EXPECT_EQ(g.neighbour_jumps, 0);
   EXPECT_EQ(g.neighbour_pairs, s.neighbour_pairs - 2 * 225 - 224);
+}
+
+// The two flying-pixel rulers on one hand-made band per row, 0.6 m left of it and 0.7 m
+// right: u = 148, 149 near | 150, 151 invalid | 152 at 0.65 m (flying, half-way) | 153,
+// 154 invalid | 155 at 0.6 m (a fragment of the near surface) | 156 invalid | 157, 158 far.
+// Beside the bands (2 px either side of each invalid run, from 148 to 158): 148, 149, 152,
+// 155, 157, 158, one flying: 1/6. The old ruler: the stable sides 149 and 157 and both
+// fragments, one flying: 1/4.
+TEST(DepthStats, FlyingPixelsBesideTheBandsCountEachPixelOnce) {
+  io::Intrinsics K;
+  io::DepthImage img = wall(K, [](int u, int) { return u < 150 ? 0.0 : 0.1; });
+  const auto at = [&](int u, int v) -> std::uint16_t& {
+    return img.data[static_cast<std::size_t>(v) * 300 + static_cast<std::size_t>(u)];
+  };
+  for (int v = 0; v < 225; ++v) {
+    for (const int u : {150, 151, 153, 154, 156}) at(u, v) = 0;
+    at(152, v) = static_cast<std::uint16_t>(std::lround(0.65 / K.depth_scale));
+    at(155, v) = static_cast<std::uint16_t>(std::lround(0.6 / K.depth_scale));
+  }
+  const DepthStats s = depth_stats({img}, K);
+  EXPECT_EQ(s.band_side_pixels, 6 * 225);
+  EXPECT_EQ(s.band_side_flying, 225);
+  EXPECT_DOUBLE_EQ(s.flying_band_rate, 1.0 / 6);
+  EXPECT_EQ(s.band_neighbours, 4 * 225);
+  EXPECT_DOUBLE_EQ(s.flying_rate, 0.25);
 }
 
 TEST(DepthStats, BadInputIsNamed) {

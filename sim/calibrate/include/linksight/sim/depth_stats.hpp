@@ -132,6 +132,13 @@ struct DepthStats {
   double flying_iqr = 0;         ///< interquartile range of that position
   long band_neighbours = 0;
   long flying = 0;               ///< flying pixels counted
+  /// Flying pixels counted beside the bands, which counts the same on the camera and on
+  /// the model however many valid fragments a band holds (those enter flying_rate's
+  /// denominator): per discontinuity with an invalid pixel between its stable sides, the
+  /// valid pixels at most 2 px before or after each run of invalid pixels there (from the
+  /// stable sides' outer neighbours on; each pixel once), and of them those 10-90% across.
+  long band_side_pixels = 0, band_side_flying = 0;
+  double flying_band_rate = 0;  ///< band_side_flying / band_side_pixels
   /// Share of discontinuities (both sides) with one lone valid pixel in the gap, 10-90%
   /// across: a flying pixel, not a side face seen at grazing incidence.
   double flying_per_edge = 0;
@@ -156,6 +163,22 @@ struct DepthStats {
 [[nodiscard]] DepthStats depth_stats(const std::vector<io::DepthImage>& frames,
                                      const io::Intrinsics& intrinsics,
                                      const DepthStatsParams& params = {});
+
+/// A half of a recording, for validation that is not in-sample (issue 20, part 3): fit on
+/// one half, compare on the other. `even` / `odd`: the frames at even / odd positions of
+/// the recording's order (0, 2, ... / 1, 3, ...); `near` / `far`: the frames sorted by
+/// their median valid depth (ties by position), the first ceil(n/2) / the rest; `all`:
+/// every frame. Each pair of halves splits the recording.
+enum class FrameHalf { all, even, odd, near, far };
+/// "all" / "even" / "odd" / "near" / "far"; parse throws std::invalid_argument naming the
+/// value and the choices.
+[[nodiscard]] std::string_view to_string(FrameHalf half);
+[[nodiscard]] FrameHalf parse_frame_half(std::string_view name);
+/// The positions (ascending) of `half`'s frames in `frames`; `intrinsics` gives the depth
+/// scale. Throws std::invalid_argument when a frame has no valid pixel (`near` / `far`).
+[[nodiscard]] std::vector<std::size_t> frame_half(const std::vector<io::DepthImage>& frames,
+                                                  const io::Intrinsics& intrinsics,
+                                                  FrameHalf half);
 
 /// Each frame's own surface (depth_surface_mesh) rendered through the simulated camera at
 /// `intrinsics` with `noise`, draws from (seed, frame index): the recording's geometry
