@@ -164,9 +164,7 @@ inline std::vector<io::DepthImage> take_half(std::vector<io::DepthImage> images,
 /// The --half option (take_half), its values checked by name.
 inline CLI::Option* add_half_option(CLI::App& app, std::string& half, const std::string& what) {
   std::vector<std::string> names;
-  for (const sim::FrameHalf h : {sim::FrameHalf::all, sim::FrameHalf::even, sim::FrameHalf::odd,
-                                 sim::FrameHalf::near, sim::FrameHalf::far})
-    names.emplace_back(sim::to_string(h));
+  for (const sim::FrameHalf h : sim::kFrameHalves) names.emplace_back(sim::to_string(h));
   return app
       .add_option("--half", half,
                   what + ": all, or one half of its frames for a held-out check (fit on one, "

@@ -1749,12 +1749,10 @@ TEST_F(Cli, HeldOutHalvesFitOnOneCompareOnTheOther) {
                      " --out " + block.string(),
                  dir);
   ASSERT_EQ(r.code, 0) << r.err;
-  std::ifstream in(block);
-  std::stringstream text;
-  text << in.rdbuf();
-  EXPECT_NE(text.str().find("fitted to 6 frames"), std::string::npos) << text.str();
-  EXPECT_NE(text.str().find("(--half even)"), std::string::npos) << text.str();
-  std::ofstream(dir / "scene.yaml") << "duration_s: 0.1\n" << text.str();
+  const std::string text = slurp(block);
+  EXPECT_NE(text.find("fitted to 6 frames"), std::string::npos) << text;
+  EXPECT_NE(text.find("(--half even)"), std::string::npos) << text;
+  std::ofstream(dir / "scene.yaml") << "duration_s: 0.1\n" << text;
   const fs::path out2 = dir / "odd";
   r = run("fidelity --real " + real.string() + " --rerender --half odd --noise-scene " +
               (dir / "scene.yaml").string() + " --no-figures --out " + out2.string(),

@@ -905,8 +905,7 @@ std::string_view to_string(FrameHalf half) {
 }
 
 FrameHalf parse_frame_half(std::string_view name) {
-  for (const FrameHalf h :
-       {FrameHalf::all, FrameHalf::even, FrameHalf::odd, FrameHalf::near, FrameHalf::far})
+  for (const FrameHalf h : kFrameHalves)
     if (name == to_string(h)) return h;
   throw std::invalid_argument("frame half '" + std::string(name) +
                               "': expected all, even, odd, near or far");

@@ -344,9 +344,7 @@ TEST(DepthStats, FrameHalvesSplitTheRecording) {
   for (const std::size_t n : frame_half(frames, K, FrameHalf::near))
     for (const std::size_t f : frame_half(frames, K, FrameHalf::far))
       EXPECT_LE(median_z(n), median_z(f)) << n << " near, " << f << " far";
-  for (const FrameHalf h :
-       {FrameHalf::all, FrameHalf::even, FrameHalf::odd, FrameHalf::near, FrameHalf::far})
-    EXPECT_EQ(parse_frame_half(to_string(h)), h);
+  for (const FrameHalf h : kFrameHalves) EXPECT_EQ(parse_frame_half(to_string(h)), h);
   try {
     (void)parse_frame_half("middle");
     ADD_FAILURE() << "no throw";

@@ -170,6 +170,9 @@ struct DepthStats {
 /// their median valid depth (ties by position), the first ceil(n/2) / the rest; `all`:
 /// every frame. Each pair of halves splits the recording.
 enum class FrameHalf { all, even, odd, near, far };
+/// Every FrameHalf, in declaration order (the names' one list: parsing, CLI choices).
+inline constexpr FrameHalf kFrameHalves[] = {FrameHalf::all, FrameHalf::even, FrameHalf::odd,
+                                             FrameHalf::near, FrameHalf::far};
 /// "all" / "even" / "odd" / "near" / "far"; parse throws std::invalid_argument naming the
 /// value and the choices.
 [[nodiscard]] std::string_view to_string(FrameHalf half);
