@@ -152,7 +152,8 @@ TEST(Fields, TrackerParamsListTheSceneKeys) {
   EXPECT_EQ(r.keys, (std::vector<std::string>{
                         "mode", "init", "poly_order", "max_points", "som_init", "backend",
                         "threads", "iterations", "tolerance_m", "chain_fit{", "max_iterations",
-                        "huber_m", "max_distance_m", "tolerance_m", "reassociate_m", "bend_sigma_deg",
+                        "huber_m", "max_distance_m", "tolerance_m", "reassociate_m", "coarse_stride",
+                        "coarse_accept_m", "bend_sigma_deg",
                         "straight_sigma_deg", "misfit_inliers", "misfit_rms_m", "reinit_gain",
                         "free_space_below", "free_space_margin_m", "hidden_below", "}", "base_prior{", "enabled", "sigma_m", "sigma_deg", "}"}));
   ComponentGeometry g;

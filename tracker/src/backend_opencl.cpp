@@ -428,13 +428,16 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
 
   detail::ChainSums chain_pass(const detail::ChainFrames& f, const ComponentGeometry& g,
                                const ChainFitParams& params, bool search, int read,
-                               int write) override {
+                               int write, std::size_t stride) override {
     const int count = static_cast<int>(f.cx.size());
     detail::ChainSums total(f.cx.size());
     events_.clear();
     if (n_ == 0 || count == 0) return total;
     if (read < 0 || read > 1 || write < 0 || write > 1)
       throw std::invalid_argument("OpenCL chain pass: association buffers are 0 and 1");
+    if (stride < 1 || stride > detail::kChainBlock)
+      throw std::invalid_argument("OpenCL chain pass: stride " + std::to_string(stride) +
+                                  " is not in [1, the block]");
     if (n_ > chain_points_)
       throw std::logic_error("OpenCL chain pass: the points were set by set_points, not "
                              "set_chain_points");
@@ -459,12 +462,12 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
                                nullptr, nullptr),
           "upload geometry");
     const auto n = static_cast<cl_uint>(n_);
+    const std::size_t block = detail::kChainBlock;
     set_args(k_chain_point_.get(), x_.get(), y_.get(), z_.get(), n, chain_fr_.get(),
              static_cast<cl_int>(count), chain_geo_.get(), static_cast<cl_int>(search ? 1 : 0),
              chain_assoc_[read].get(), chain_assoc_[write].get(), chain_comp_.get(),
-             chain_val_.get());
+             chain_val_.get(), static_cast<cl_uint>(block), static_cast<cl_uint>(stride));
     run(k_chain_point_.get(), (n_ + chain_wg_ - 1) / chain_wg_ * chain_wg_, chain_wg_);
-    const std::size_t block = detail::kChainBlock;
     const std::size_t blocks = (n_ + block - 1) / block;
     const std::size_t items = blocks * static_cast<std::size_t>(count + 1);
     std::size_t cap_d = chain_out_items_ * 20 * sizeof(cl_double),

@@ -217,29 +217,61 @@ Sums pass(const PointsView& pts, const Frames& f, const ChainState& chain,
 
 // The chain's normal equations from the components' (Gauss-Newton in x = [dc0;
 // dtheta_0..dtheta_{count-1}]): u_k = P_k x with dc_k = dc0 + pitch sum_{j<k} T_j
-// dtheta_j, T_j = [t1_j t2_j].
+// dtheta_j, T_j = [t1_j t2_j]. By column group (g = 0: dc0, with G_0 = I; g = j + 1:
+// dtheta_j, with G_g = pitch T_j, which moves the centres of components k >= g), H's block
+// (g, h) is G_g^T (sum over k >= max(g, h) of component k's centre block) G_h, plus each
+// component's cross and rotation blocks: suffix sums make it O(count^2) 3x3 products
+// instead of count dense (3 + 2 count)^2 sandwiches.
 void assemble(const Sums& s, const Frames& f, double pitch, Eigen::MatrixXd& H,
               Eigen::VectorXd& b) {
-  const auto n = H.rows();
+  const std::size_t K = s.H.size();
   H.setZero();
   b.setZero();
-  Eigen::Matrix<double, 5, Eigen::Dynamic> P(5, n);
-  for (std::size_t k = 0; k < s.H.size(); ++k) {
-    // Nothing to add from a component without points or free-space rays.
-    if (s.count[k] == 0 && s.H[k].isZero(0.0)) continue;
-    P.setZero();
-    P.block<3, 3>(0, 0).setIdentity();
-    for (std::size_t j = 0; j < k; ++j) {
-      const auto c = 3 + 2 * static_cast<Eigen::Index>(j);
-      P.block<3, 1>(0, c) = pitch * f.t1[j];
-      P.block<3, 1>(0, c + 1) = pitch * f.t2[j];
+  std::vector<Mat5> full(K);
+  std::vector<Eigen::Matrix3d> S(K + 1, Eigen::Matrix3d::Zero());
+  std::vector<Eigen::Vector3d> sb(K + 1, Eigen::Vector3d::Zero());
+  for (std::size_t k = K; k-- > 0;) {
+    full[k] = s.H[k].selfadjointView<Eigen::Lower>();
+    S[k] = S[k + 1] + full[k].topLeftCorner<3, 3>();
+    sb[k] = sb[k + 1] + s.b[k].head<3>();
+  }
+  // G_g for g >= 1 (3 x 2); group g's first column.
+  std::vector<Eigen::Matrix<double, 3, 2>> G(K + 1);
+  for (std::size_t g = 1; g <= K; ++g) {
+    G[g].col(0) = pitch * f.t1[g - 1];
+    G[g].col(1) = pitch * f.t2[g - 1];
+  }
+  const auto col = [](std::size_t g) {
+    return g == 0 ? Eigen::Index{0} : static_cast<Eigen::Index>(3 + 2 * (g - 1));
+  };
+  H.topLeftCorner<3, 3>() = S[0];
+  b.head<3>() = sb[0];
+  for (std::size_t g = 1; g < K; ++g) {  // G_K moves no centre (no component k >= K)
+    const Eigen::Index c = col(g);
+    const Eigen::Matrix<double, 2, 3> GtS = G[g].transpose() * S[g];
+    H.block<2, 2>(c, c) = GtS * G[g];
+    H.block<2, 3>(c, 0) = GtS;  // with dc0: G_0 = I
+    H.block<3, 2>(0, c) = GtS.transpose();
+    for (std::size_t h = 1; h < g; ++h) {
+      const Eigen::Matrix2d blk = GtS * G[h];  // max(g, h) = g
+      H.block<2, 2>(c, col(h)) = blk;
+      H.block<2, 2>(col(h), c) = blk.transpose();
     }
-    const auto c = 3 + 2 * static_cast<Eigen::Index>(k);
-    P(3, c) = 1.0;
-    P(4, c + 1) = 1.0;
-    const Mat5 Hk = s.H[k].selfadjointView<Eigen::Lower>();
-    H.noalias() += P.transpose() * Hk * P;
-    b.noalias() += P.transpose() * s.b[k];
+    b.segment<2>(c) = G[g].transpose() * sb[g];
+  }
+  for (std::size_t k = 0; k < K; ++k) {
+    const Eigen::Index r = col(k + 1);
+    const Eigen::Matrix<double, 3, 2> Hcr = full[k].topRightCorner<3, 2>();
+    // Component k's rotation against every group that moves its centre (g <= k).
+    H.block<3, 2>(0, r) += Hcr;
+    H.block<2, 3>(r, 0) += Hcr.transpose();
+    for (std::size_t g = 1; g <= k; ++g) {
+      const Eigen::Matrix2d blk = G[g].transpose() * Hcr;
+      H.block<2, 2>(col(g), r) += blk;
+      H.block<2, 2>(r, col(g)) += blk.transpose();
+    }
+    H.block<2, 2>(r, r) += full[k].bottomRightCorner<2, 2>();
+    b.segment<2>(r) += s.b[k].tail<2>();
   }
 }
 
@@ -483,42 +515,48 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
   }
   const Eigen::Index n = 3 + 2 * count;
   ChainFitResult result;
-  double lambda = 1e-4;  // damping, relative to the diagonal (Levenberg-Marquardt)
   Eigen::MatrixXd H(n, n);
   Eigen::VectorXd b(n);
-  // One pass per iteration: it linearizes at the chain and gives the chain's cost; a
-  // trial that costs more is dropped and the damping raised (one more pass).
-  Frames f = frames_of(chain, g);
-  // The accepted chain's association, and a trial's own when it searches (kept only if
-  // the trial is accepted, so a rejected trial leaves the association it was priced
-  // against).
-  // On a device, the buffers are the device's: `accepted` names the accepted one.
+  // On a device, the association buffers are the device's: `accepted` names the accepted
+  // one. On the CPU: the accepted chain's association, and a trial's own when it searches
+  // (kept only if the trial is accepted, so a rejected trial leaves the association it
+  // was priced against).
   std::vector<std::int16_t> assoc, trial_assoc;
   if (device == nullptr) {
     assoc.resize(pts.size());
     trial_assoc.resize(pts.size());
   }
   int accepted = 0;
-  // A pass at `c`: reusing the accepted association, or searching into the trial's
-  // buffer (`first`: into the accepted one).
   // The free-space rays of the last pass run (depth given).
   int rays = 0;
-  const auto run_pass = [&](const Frames& fr, const ChainState& c, bool reuse, bool first) {
+  // A pass at `c` over every `stride`-th point: reusing the accepted association, or
+  // searching into the trial's buffer (`first`: into the accepted one). A coarse pass's
+  // sums are scaled by its stride (on the host, so the same bits on every back end), so
+  // that the priors, the free-space rays and the held balls, and the inlier thresholds
+  // they use, weigh against the points as on a full pass.
+  const auto run_pass = [&](const Frames& fr, const ChainState& c, bool reuse, bool first,
+                            std::size_t stride) {
     Sums sums = device != nullptr
                     ? device->chain_pass(fr, g, params, !reuse, accepted,
-                                         first ? accepted : 1 - accepted)
-                    : pass(pts, fr, c, g, params, threads, 1,
+                                         first ? accepted : 1 - accepted, stride)
+                    : pass(pts, fr, c, g, params, threads, stride,
                            reuse ? Association{assoc.data(), true}
                                  : Association{first ? assoc.data() : trial_assoc.data(), false});
+    if (stride > 1) {
+      const auto k = static_cast<double>(stride);
+      for (std::size_t j = 0; j < sums.H.size(); ++j) {
+        sums.H[j] *= k;
+        sums.b[j] *= k;
+        sums.count[j] *= static_cast<std::int64_t>(stride);
+      }
+      sums.robust *= k;
+      sums.sum2 *= k;
+      sums.inliers *= stride;
+    }
     if (depth != nullptr) rays = add_free_space(sums, fr, g, params, *depth);
     if (anchor != nullptr) add_held(sums, fr, params, *anchor);
     return sums;
   };
-  Sums current = run_pass(f, chain, false, true);
-  int current_rays = rays;
-  result.searches = 1;
-  Nodes searched_at = f.centre;  // the nodes where the points were last searched
-  ++result.passes;
   // The prior's weight: a bend change of bend_sigma costs what a point at the Huber
   // threshold does.
   const double prior_weight =
@@ -534,48 +572,88 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
     assemble(s, fr, g.pitch, H, b);
     return s.robust + priors(c, fr, true);
   };
-  double current_cost = normal_equations(current, chain, f);
-  for (int it = 0; it < params.max_iterations; ++it) {
-    // A parameter nothing constrains (an axis of a hidden component without a shape
-    // prior) has a zero row: the floor keeps it where it is.
-    Eigen::MatrixXd A = H;
-    for (Eigen::Index d = 0; d < n; ++d) A(d, d) += lambda * H(d, d) + 1e-12;
-    const Eigen::VectorXd dx = A.ldlt().solve(b);
-    ChainState trial = stepped(chain, f, dx);
-    limit_bends(trial, params.cone_limit);
-    double moved = 0;
-    const Nodes after = trial.nodes(g.pitch);
-    for (std::size_t k = 0; k < after.size(); ++k)
-      moved = std::max(moved, (after[k] - f.centre[k]).norm());
-    if (moved <= params.tolerance) {  // a minimum, within the tolerance: the step is taken
-      chain = std::move(trial);      // unchecked (one pass less; it moves next to nothing)
-      break;
-    }
-    Frames tf = frames_of(trial, g);
-    double drift = 0;
-    for (std::size_t k = 0; k < after.size(); ++k)
-      drift = std::max(drift, (after[k] - searched_at[k]).norm());
-    const bool reuse = drift <= params.reassociate;
-    Sums ts = run_pass(tf, trial, reuse, false);
+  // Coarse to fine (ChainFitParams::coarse_stride): stage 0 on every stride-th point, stage
+  // 1 on all; without the coarse stage, stage 1 alone.
+  const auto stride = static_cast<std::size_t>(params.coarse_stride);
+  bool coarse = stride > 1 && pts.size() / stride >= kCoarseMinPerComponent *
+                                                          static_cast<std::size_t>(count);
+  Frames f = frames_of(chain, g);
+  Sums current(0);
+  int current_rays = 0;
+  for (int stage = coarse ? 0 : 1; stage < 2; ++stage) {
+    const std::size_t step_stride = stage == 0 ? stride : 1;
+    double lambda = 1e-4;  // damping, relative to the diagonal (Levenberg-Marquardt)
+    // One pass per iteration: it linearizes at the chain and gives the chain's cost; a
+    // trial that costs more is dropped and the damping raised (one more pass). Each stage
+    // starts with a search: the coarse one's association holds its own points only.
+    if (stage == 1) f = frames_of(chain, g);
+    current = run_pass(f, chain, false, true, step_stride);
+    current_rays = rays;
+    ++result.searches;
     ++result.passes;
-    result.searches += !reuse;
-    const double trial_cost = ts.robust + priors(trial, tf, false);
-    if (trial_cost <= current_cost) {
-      chain = std::move(trial);
-      f = std::move(tf);
-      current = std::move(ts);
-      current_rays = rays;
-      current_cost = normal_equations(current, chain, f);
-      lambda = std::max(lambda / 10, 1e-9);
-      ++result.iterations;
-      if (!reuse) {
-        assoc.swap(trial_assoc);
-        accepted = 1 - accepted;
-        searched_at = after;
+    result.coarse_passes += stage == 0;
+    // A component with few coarse points (hidden, or at the image's edge) is where the
+    // free-space rays and the held balls switch on and off with the counts, and its coarse
+    // estimate is poor: such a chain is fitted on every point from the start, as without
+    // the coarse stage (this pass wasted).
+    if (stage == 0 &&
+        std::any_of(current.count.begin(), current.count.end(), [&](std::int64_t c) {
+          return c < static_cast<std::int64_t>(kCoarseMinPerComponent * stride);
+        })) {
+      coarse = false;
+      continue;
+    }
+    Nodes searched_at = f.centre;  // the nodes where the points were last searched
+    double current_cost = normal_equations(current, chain, f);
+    for (int it = 0; it < params.max_iterations; ++it) {
+      // A parameter nothing constrains (an axis of a hidden component without a shape
+      // prior) has a zero row: the floor keeps it where it is.
+      Eigen::MatrixXd A = H;
+      for (Eigen::Index d = 0; d < n; ++d) A(d, d) += lambda * H(d, d) + 1e-12;
+      const Eigen::VectorXd dx = A.ldlt().solve(b);
+      ChainState trial = stepped(chain, f, dx);
+      limit_bends(trial, params.cone_limit);
+      double moved = 0;
+      const Nodes after = trial.nodes(g.pitch);
+      for (std::size_t k = 0; k < after.size(); ++k)
+        moved = std::max(moved, (after[k] - f.centre[k]).norm());
+      // A minimum, within the tolerance: the step is taken unchecked (one pass less; it
+      // moves next to nothing). After the coarse stage, the full pass's first step is
+      // taken unchecked up to coarse_accept: from that near, one step converges.
+      const double unchecked = coarse && stage == 1 && it == 0
+                                   ? std::max(params.tolerance, params.coarse_accept)
+                                   : params.tolerance;
+      if (moved <= unchecked) {
+        chain = std::move(trial);
+        break;
       }
-    } else {
-      lambda *= 10;
-      if (lambda > 1e8) break;  // no damped step lowers the cost
+      Frames tf = frames_of(trial, g);
+      double drift = 0;
+      for (std::size_t k = 0; k < after.size(); ++k)
+        drift = std::max(drift, (after[k] - searched_at[k]).norm());
+      const bool reuse = drift <= params.reassociate;
+      Sums ts = run_pass(tf, trial, reuse, false, step_stride);
+      ++result.passes;
+      result.coarse_passes += stage == 0;
+      result.searches += !reuse;
+      const double trial_cost = ts.robust + priors(trial, tf, false);
+      if (trial_cost <= current_cost) {
+        chain = std::move(trial);
+        f = std::move(tf);
+        current = std::move(ts);
+        current_rays = rays;
+        current_cost = normal_equations(current, chain, f);
+        lambda = std::max(lambda / 10, 1e-9);
+        ++result.iterations;
+        if (!reuse) {
+          assoc.swap(trial_assoc);
+          accepted = 1 - accepted;
+          searched_at = after;
+        }
+      } else {
+        lambda *= 10;
+        if (lambda > 1e8) break;  // no damped step lowers the cost
+      }
     }
   }
   result.inliers = current.inliers;

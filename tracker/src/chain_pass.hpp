@@ -80,11 +80,12 @@ class ChainPassDevice {
   virtual ~ChainPassDevice() = default;
   /// The frame's points, once per frame before its passes.
   virtual void set_chain_points(const PointsView& points) = 0;
-  /// One pass over every point at `f`: with `search`, each point's nearest component,
-  /// recorded in association buffer `write` (0 or 1); else buffer `read`'s, reused.
+  /// One pass over every `stride`-th point of each block (kChainBlock) at `f`: with
+  /// `search`, each point's nearest component, recorded in association buffer `write` (0
+  /// or 1); else buffer `read`'s, reused.
   virtual detail::ChainSums chain_pass(const detail::ChainFrames& f, const ComponentGeometry& g,
                                        const ChainFitParams& params, bool search, int read,
-                                       int write) = 0;
+                                       int write, std::size_t stride) = 0;
 };
 
 }  // namespace linksight

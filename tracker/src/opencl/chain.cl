@@ -95,9 +95,17 @@ kernel void chain_point(global const float* x, global const float* y, global con
                         const uint n, global const double* fr, const int count,
                         global const double* geo, const int search,
                         global const short* assoc_in, global short* assoc_out,
-                        global int* comp, global double* val) {
+                        global int* comp, global double* val, const uint block,
+                        const uint stride) {
   const size_t i = get_global_id(0);
   if (i >= n) return;
+  // A coarse pass (stride > 1) takes every stride-th point of each block: the others add
+  // nothing (a zero cost, no component), as the CPU skips them.
+  if ((i % block) % stride != 0) {
+    val[VALS * i] = 0.0;
+    comp[i] = -1;
+    return;
+  }
   const double r = geo[0], rn = geo[1], L = geo[2], reach = geo[3], h = geo[4],
                maxd = geo[5];
   const double px = (double)x[i], py = (double)y[i], pz = (double)z[i];

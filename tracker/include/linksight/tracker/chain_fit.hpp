@@ -34,6 +34,17 @@ struct ChainFitParams {
   /// for their nearest component reuses that search (a pass then costs one component's
   /// distance per point); 0: search on every pass [m].
   double reassociate = 0.002;
+  /// Coarse to fine: a fit first converges on every coarse_stride-th point of each block
+  /// (its sums scaled by the stride, so priors and thresholds weigh as on all points),
+  /// then takes one pass over every point, whose step is taken unchecked when it moves no
+  /// centre more than coarse_accept (the coarse fit is that near the full one: one
+  /// Gauss-Newton step from there lands within the tolerance); a larger step goes on as a
+  /// full fit. Most frames then cost one pass over every point instead of 2-3. 1: off, every
+  /// pass over every point. Used only where the first coarse pass finds every component
+  /// at least kCoarseMinPerComponent coarse inliers: a chain with a hidden or barely seen
+  /// component is fitted on every point from the start.
+  int coarse_stride = 8;
+  double coarse_accept = 0.0005;  ///< [m]
   /// With a shape prior: how far a joint's bend may change from the prior's, as one σ
   /// (the link holds its shape unless pushed; a hidden joint keeps its bend) [rad].
   double bend_sigma = 0.3 * 3.14159265358979323846 / 180.0;
@@ -68,6 +79,8 @@ struct ChainFitParams {
     ar("max_distance_m", max_distance, fields::in(1e-4, 1));
     ar("tolerance_m", tolerance, fields::in(0, 1e-3));
     ar("reassociate_m", reassociate, fields::in(0, 0.01));
+    ar("coarse_stride", coarse_stride, fields::in(1, 64));
+    ar("coarse_accept_m", coarse_accept, fields::in(0, 0.01));
     ar("bend_sigma_deg", bend_sigma, fields::deg(fields::in(0.01, 90)));
     ar("straight_sigma_deg", straight_sigma, fields::deg(fields::in(0.01, 90)));
     ar("misfit_inliers", misfit_inliers, fields::in(0, 1));
@@ -99,9 +112,15 @@ struct ChainAnchor {
   double held_sigma_m = 0.001;  ///< [m]
 };
 
+/// ChainFitParams::coarse_stride: the coarse stage runs only on a cloud of at least this
+/// many coarse points per component, and goes on only where each component has this many
+/// coarse inliers (fewer would steer the full fit, not start it).
+inline constexpr std::size_t kCoarseMinPerComponent = 20;
+
 struct ChainFitResult {
   int iterations = 0;       ///< accepted Levenberg-Marquardt steps
   int passes = 0;           ///< passes over the points (one per step tried, plus the first)
+  int coarse_passes = 0;    ///< of them, coarse ones (over every coarse_stride-th point)
   int searches = 0;         ///< of them, passes that searched every point's component
   /// Points within max_distance of the fitted chain's surface, and their RMS distance to
   /// it [m], from the last accepted pass: its association may be one reused from up to
