@@ -89,8 +89,14 @@ Hit hit_of(const Eigen::Vector3d& p, const Frames& f, std::size_t k, const Candi
   return h;
 }
 
-// `d2`: scratch of count entries.
-Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g, double* d2) {
+// The nearest component's index (-1: none) and its candidate. `d2`: scratch of count
+// entries.
+struct Nearest {
+  int k = -1;
+  Candidate c{};
+};
+Nearest nearest_candidate(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g,
+                          double* d2) {
   const std::size_t count = f.cx.size();
   if (count == 0) return {};
   // Squared distances to every centre (a loop the compiler vectorizes); the nearest
@@ -125,7 +131,13 @@ Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& 
       bk = k;
     }
   }
-  return hit_of(p, f, bk, best);
+  return {static_cast<int>(bk), best};
+}
+
+Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g, double* d2) {
+  const Nearest n = nearest_candidate(p, f, g, d2);
+  if (n.k < 0) return {};
+  return hit_of(p, f, static_cast<std::size_t>(n.k), n.c);
 }
 
 // Component k's distance to p with the normal there.
@@ -147,6 +159,8 @@ double huber(double r, double h) {
 struct Association {
   std::int16_t* assoc = nullptr;
   bool reuse = false;
+  // The robust cost alone (to choose between starts): no normal equations, no normals.
+  bool cost_only = false;
 };
 
 void accumulate(const PointsView& pts, std::size_t begin, std::size_t end, std::size_t stride,
@@ -155,6 +169,12 @@ void accumulate(const PointsView& pts, std::size_t begin, std::size_t end, std::
   std::vector<double> d2(f.cx.size());
   for (std::size_t i = begin; i < end; i += stride) {
     const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
+    if (a.cost_only) {  // the robust cost as below, from the distance alone
+      const Nearest n = nearest_candidate(p, f, g, d2.data());
+      const double r = n.k >= 0 ? n.c.distance : std::numeric_limits<double>::infinity();
+      s.robust += huber(std::min(std::abs(r), params.max_distance), params.huber);
+      continue;
+    }
     Hit hit;
     if (a.reuse) {
       hit = hit_on(p, f, g, static_cast<std::size_t>(a.assoc[i]));
@@ -441,7 +461,9 @@ double chain_cost(const PointsView& pts, const ChainState& chain, const Componen
   params.validate();
   if (threads <= 0) threads = omp_get_num_procs();
   if (stride == 0) throw std::invalid_argument("chain_cost: stride must be at least 1");
-  return pass(pts, frames_of(chain, g), chain, g, params, threads, stride).robust;
+  return pass(pts, frames_of(chain, g), chain, g, params, threads, stride,
+              Association{nullptr, false, true})
+      .robust;
 }
 
 ChainState slide_to_best(const PointsView& pts, const ChainState& start,
@@ -472,7 +494,9 @@ ChainState slide_to_best(const PointsView& pts, const ChainState& start,
     }
     const ChainState candidate = chain_from_nodes(moved, g);
     const double cost =
-        pass(pts, frames_of(candidate, g), candidate, g, params, threads).robust;
+        pass(pts, frames_of(candidate, g), candidate, g, params, threads, 1,
+             Association{nullptr, false, true})
+            .robust;
     if (cost < best_cost) {
       best_cost = cost;
       best = candidate;
@@ -619,10 +643,15 @@ ChainFitResult fit_chain(const PointsView& pts, ChainState& chain,
         moved = std::max(moved, (after[k] - f.centre[k]).norm());
       // A minimum, within the tolerance: the step is taken unchecked (one pass less; it
       // moves next to nothing). After the coarse stage, the full pass's first step is
-      // taken unchecked up to coarse_accept: from that near, one step converges.
-      const double unchecked = coarse && stage == 1 && it == 0
-                                   ? std::max(params.tolerance, params.coarse_accept)
-                                   : params.tolerance;
+      // taken unchecked up to coarse_accept: from that near, one step converges. The
+      // coarse stage stops within half of that, so that the full step (what is left of the
+      // coarse one, plus the offset between the coarse points' minimum and all points')
+      // stays within it: a start already at the minimum (a still link) then costs one
+      // coarse pass and one full one.
+      const double unchecked =
+          stage == 0   ? std::max(params.tolerance, 0.5 * params.coarse_accept)
+          : it == 0 && coarse ? std::max(params.tolerance, params.coarse_accept)
+                              : params.tolerance;
       if (moved <= unchecked) {
         chain = std::move(trial);
         break;
