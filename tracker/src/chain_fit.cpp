@@ -255,7 +255,7 @@ void assemble(const Sums& s, const Frames& f, double pitch, Eigen::MatrixXd& H,
     S[k] = S[k + 1] + full[k].topLeftCorner<3, 3>();
     sb[k] = sb[k + 1] + s.b[k].head<3>();
   }
-  // G_g for g >= 1 (3 x 2); group g's first column.
+  // G_g for g >= 1 (3 x 2); col(g): group g's first column in x.
   std::vector<Eigen::Matrix<double, 3, 2>> G(K + 1);
   for (std::size_t g = 1; g <= K; ++g) {
     G[g].col(0) = pitch * f.t1[g - 1];
