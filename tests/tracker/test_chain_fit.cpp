@@ -324,7 +324,8 @@ TEST(ChainFitRobust, ReusedAssociationGivesTheSearchedResult) {
 // Coarse to fine (coarse_stride): converging on every 8th point and then taking one
 // full pass's step gives the centres a fit on every point gives, within a third of the
 // tolerance, with one pass over every point instead of several; the noise-free fit is as
-// exact. A cloud too small for the coarse stage has none.
+// exact. A chain with a hidden component, and a cloud too small for the coarse stage,
+// are fitted as without it.
 TEST(ChainFitRobust, CoarseStageGivesTheFullFitsCentresInOneFullPass) {
   constexpr double kCoarseBand = 0.01e-3;  // [m]
   const ComponentGeometry g;
@@ -349,6 +350,30 @@ TEST(ChainFitRobust, CoarseStageGivesTheFullFitsCentresInOneFullPass) {
       EXPECT_LT(max_error(coarse.nodes(g.pitch), truth), kNoiseFreeBand);
     }
     expect_pitch(coarse, g);
+  }
+  // A hidden half: the first coarse pass finds components without points, and the fit
+  // goes on as one without the coarse stage, to the bit, one coarse pass later.
+  {
+    SCOPED_TRACE("hidden half");
+    const Nodes truth = test::test_chain(sim::ChainShape::s_shape);
+    sim::SurfaceSampling s;
+    s.noise_sigma = 0.4e-3;
+    s.seed = 19;
+    s.hidden = {6, 7, 8, 9, 10};
+    const test::Soa pts(sim::sample_visible_surface(truth, g, s));
+    ChainState coarse = perturbed(truth, g, 20), full = coarse;
+    const ChainState shape = coarse;
+    const ChainFitResult a = fit_chain(pts.view(), coarse, g, {}, 1, &shape);
+    ChainFitParams every;
+    every.coarse_stride = 1;
+    const ChainFitResult b = fit_chain(pts.view(), full, g, every, 1, &shape);
+    EXPECT_EQ(a.coarse_passes, 1);
+    EXPECT_EQ(a.passes, b.passes + 1);
+    EXPECT_EQ(a.searches, b.searches + 1);
+    EXPECT_EQ(coarse.c0, full.c0);
+    EXPECT_EQ(coarse.axis, full.axis);
+    EXPECT_EQ(a.counts, b.counts);
+    EXPECT_EQ(a.cost, b.cost);
   }
   // One point fewer than the coarse stage needs.
   const auto few = static_cast<std::ptrdiff_t>(

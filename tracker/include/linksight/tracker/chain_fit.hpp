@@ -20,7 +20,7 @@ namespace linksight {
 class ChainPassDevice;  // a back end's own passes (Backend::chain_pass_device)
 
 struct ChainFitParams {
-  int max_iterations = 20;
+  int max_iterations = 20;  ///< Levenberg-Marquardt steps tried per stage (coarse, full)
   /// Huber loss: residuals beyond this weigh linearly, not quadratically (flying pixels,
   /// rim pixels, stray points) [m].
   double huber = 0.001;
@@ -28,7 +28,7 @@ struct ChainFitParams {
   double max_distance = 0.01;
   /// Stop after a step that moves no centre more than this [m] (0.03 mm: the step is
   /// taken, and what it leaves is about an eighth of it, well below the noise-free target
-  /// of 0.05 mm; each further step is a pass over every point).
+  /// of 0.05 mm; each further step is a pass over the points).
   double tolerance = 3e-5;
   /// A step that leaves every centre within this of where the points were last searched
   /// for their nearest component reuses that search (a pass then costs one component's
@@ -80,7 +80,7 @@ struct ChainFitParams {
     ar("tolerance_m", tolerance, fields::in(0, 1e-3));
     ar("reassociate_m", reassociate, fields::in(0, 0.01));
     ar("coarse_stride", coarse_stride, fields::in(1, 64));
-    ar("coarse_accept_m", coarse_accept, fields::in(0, 0.01));
+    ar("coarse_accept_m", coarse_accept, fields::in(0, 0.002));
     ar("bend_sigma_deg", bend_sigma, fields::deg(fields::in(0.01, 90)));
     ar("straight_sigma_deg", straight_sigma, fields::deg(fields::in(0.01, 90)));
     ar("misfit_inliers", misfit_inliers, fields::in(0, 1));
@@ -119,13 +119,16 @@ inline constexpr std::size_t kCoarseMinPerComponent = 20;
 
 struct ChainFitResult {
   int iterations = 0;       ///< accepted Levenberg-Marquardt steps
-  int passes = 0;           ///< passes over the points (one per step tried, plus the first)
+  /// Passes over the points: one per step tried, plus each stage's first (a coarse stage
+  /// cut short by a barely seen component counts its one pass).
+  int passes = 0;
   int coarse_passes = 0;    ///< of them, coarse ones (over every coarse_stride-th point)
-  int searches = 0;         ///< of them, passes that searched every point's component
+  int searches = 0;         ///< of them, passes that searched their points' components
   /// Points within max_distance of the fitted chain's surface, and their RMS distance to
   /// it [m], from the last accepted pass: its association may be one reused from up to
   /// reassociate away (so at most the true count and at least the true RMS), and the
-  /// final step within the tolerance, taken unchecked, is not in them.
+  /// final step taken unchecked (within the tolerance, or within coarse_accept after the
+  /// coarse stage) is not in them.
   std::size_t inliers = 0;
   double rms = 0.0;
   double cost = 0.0;  ///< robust cost of the points, free-space rays and held balls (no priors)
