@@ -329,62 +329,69 @@ TEST(ChainFitRobust, ReusedAssociationGivesTheSearchedResult) {
 TEST(ChainFitRobust, CoarseStageGivesTheFullFitsCentresInOneFullPass) {
   constexpr double kCoarseBand = 0.01e-3;  // [m]
   const ComponentGeometry g;
+  const Nodes truth = test::test_chain(sim::ChainShape::s_shape);
+  // The same start fitted with the coarse stage (the default) and without it.
+  struct Pair {
+    ChainState coarse, full;
+    ChainFitResult a, b;
+  };
+  const auto fit_both = [&](const sim::SurfaceSampling& s, std::uint64_t start_seed,
+                            bool with_shape) {
+    const test::Soa pts(sim::sample_visible_surface(truth, g, s));
+    Pair r;
+    r.coarse = perturbed(truth, g, start_seed);
+    r.full = r.coarse;
+    const ChainState shape = r.coarse;
+    const ChainState* prior = with_shape ? &shape : nullptr;
+    ChainFitParams every;
+    every.coarse_stride = 1;
+    r.a = fit_chain(pts.view(), r.coarse, g, {}, 1, prior);
+    r.b = fit_chain(pts.view(), r.full, g, every, 1, prior);
+    return r;
+  };
   for (const double noise : {0.0, 0.4e-3}) {
     SCOPED_TRACE("noise " + std::to_string(noise * 1e3) + " mm");
-    const Nodes truth = test::test_chain(sim::ChainShape::s_shape);
     sim::SurfaceSampling s;
     s.noise_sigma = noise;
     s.seed = 16;
-    const test::Soa pts(sim::sample_visible_surface(truth, g, s));
-    ChainState coarse = perturbed(truth, g, 17), full = coarse;
-    const ChainFitResult a = fit_chain(pts.view(), coarse, g, {});
-    ChainFitParams every;
-    every.coarse_stride = 1;
-    const ChainFitResult b = fit_chain(pts.view(), full, g, every);
-    EXPECT_GT(a.coarse_passes, 0);
-    EXPECT_EQ(a.passes - a.coarse_passes, 1) << "passes over every point";
-    EXPECT_EQ(b.coarse_passes, 0);
-    EXPECT_GT(b.passes, 2);
-    EXPECT_LT(max_error(coarse.nodes(g.pitch), full.nodes(g.pitch)), kCoarseBand);
+    const Pair r = fit_both(s, 17, false);
+    EXPECT_GT(r.a.coarse_passes, 0);
+    EXPECT_EQ(r.a.passes - r.a.coarse_passes, 1) << "passes over every point";
+    EXPECT_EQ(r.b.coarse_passes, 0);
+    EXPECT_GT(r.b.passes, 2);
+    EXPECT_LT(max_error(r.coarse.nodes(g.pitch), r.full.nodes(g.pitch)), kCoarseBand);
     if (noise == 0.0) {
-      EXPECT_LT(max_error(coarse.nodes(g.pitch), truth), kNoiseFreeBand);
+      EXPECT_LT(max_error(r.coarse.nodes(g.pitch), truth), kNoiseFreeBand);
     }
-    expect_pitch(coarse, g);
+    expect_pitch(r.coarse, g);
   }
   // A hidden half: the first coarse pass finds components without points, and the fit
   // goes on as one without the coarse stage, to the bit, one coarse pass later.
   {
     SCOPED_TRACE("hidden half");
-    const Nodes truth = test::test_chain(sim::ChainShape::s_shape);
     sim::SurfaceSampling s;
     s.noise_sigma = 0.4e-3;
     s.seed = 19;
     s.hidden = {6, 7, 8, 9, 10};
-    const test::Soa pts(sim::sample_visible_surface(truth, g, s));
-    ChainState coarse = perturbed(truth, g, 20), full = coarse;
-    const ChainState shape = coarse;
-    const ChainFitResult a = fit_chain(pts.view(), coarse, g, {}, 1, &shape);
-    ChainFitParams every;
-    every.coarse_stride = 1;
-    const ChainFitResult b = fit_chain(pts.view(), full, g, every, 1, &shape);
-    EXPECT_EQ(a.coarse_passes, 1);
-    EXPECT_EQ(a.passes, b.passes + 1);
-    EXPECT_EQ(a.searches, b.searches + 1);
-    EXPECT_EQ(coarse.c0, full.c0);
-    EXPECT_EQ(coarse.axis, full.axis);
-    EXPECT_EQ(a.counts, b.counts);
-    EXPECT_EQ(a.cost, b.cost);
+    const Pair r = fit_both(s, 20, true);
+    EXPECT_EQ(r.a.coarse_passes, 1);
+    EXPECT_EQ(r.a.passes, r.b.passes + 1);
+    EXPECT_EQ(r.a.searches, r.b.searches + 1);
+    EXPECT_EQ(r.coarse.c0, r.full.c0);
+    EXPECT_EQ(r.coarse.axis, r.full.axis);
+    EXPECT_EQ(r.a.counts, r.b.counts);
+    EXPECT_EQ(r.a.cost, r.b.cost);
   }
   // One point fewer than the coarse stage needs.
   const auto few = static_cast<std::ptrdiff_t>(
       kCoarseMinPerComponent * static_cast<std::size_t>(g.count) *
           static_cast<std::size_t>(ChainFitParams{}.coarse_stride) - 1);
-  const Nodes truth = test::test_chain(sim::ChainShape::c_shape);
-  const test::Soa all(sim::sample_visible_surface(truth, g, {}));
+  const Nodes c_truth = test::test_chain(sim::ChainShape::c_shape);
+  const test::Soa all(sim::sample_visible_surface(c_truth, g, {}));
   ASSERT_GT(static_cast<std::ptrdiff_t>(all.x.size()), few);
   const std::vector<float> x(all.x.begin(), all.x.begin() + few),
       y(all.y.begin(), all.y.begin() + few), z(all.z.begin(), all.z.begin() + few);
-  ChainState chain = perturbed(truth, g, 18);
+  ChainState chain = perturbed(c_truth, g, 18);
   const ChainFitResult r = fit_chain(PointsView{x, y, z}, chain, g, {});
   EXPECT_EQ(r.coarse_passes, 0);
 }
