@@ -5,10 +5,11 @@
 #
 # Runs the same commands with both binaries, each in its own source tree (scenes, meshes,
 # test data), and compares every output file's sha256:
-#   run        every shipped scene, --compare paper,paper-centred,accelerated-som, --no-figures
+#   run        every shipped scene, --compare chain-fit,paper,paper-centred,accelerated-som,
+#              --no-figures
 #   render     static and occluder_pass (depth, labels, clouds, truth, occlusion)
 #   track      the occluder_pass clouds, every mode, both LSQ inits, random-sample SOM init
-#   sweep      a 2x2 grid (noise.scale x occlusion fraction), two modes
+#   sweep      a 2x2 grid (noise.scale x occlusion fraction), three modes
 #   simulate   default; synth (analytic clouds)
 #   calibrate-noise on tests/data/sr305-hand (noise block, report.txt, stats.json)
 # Wall-clock columns and keys (time_ms, device_ms, time_ms_*, cell_wall_s,
@@ -65,7 +66,7 @@ record() {
   rm -rf "$out" && mkdir -p "$out"
   (
     cd "$src"
-    local modes=paper,paper-centred,accelerated-som
+    local modes=chain-fit,paper,paper-centred,accelerated-som
     for scene in scenes/*.yaml; do
       local name
       name=$(basename "$scene" .yaml)
@@ -80,6 +81,7 @@ record() {
     (
       cd "$out"
       local clouds=render/occluder_pass/clouds
+      "$bin" track --input $clouds --mode chain-fit --quiet --out track/chain_fit
       "$bin" track --input $clouds --mode paper --init pca --quiet --out track/paper_pca
       "$bin" track --input $clouds --mode paper --init paper --quiet --out track/paper_paper
       "$bin" track --input $clouds --mode paper-centred --quiet --out track/paper_centred
@@ -88,7 +90,7 @@ record() {
         --quiet --out track/som_random
     )
     "$bin" sweep --scene scenes/default.yaml --axis noise.scale=0,1 \
-      --axis occlusion.fraction=0.1,0.3 --set occlusion.at=middle --compare paper,accelerated-som \
+      --axis occlusion.fraction=0.1,0.3 --set occlusion.at=middle --compare chain-fit,paper,accelerated-som \
       --frames $((frames < 12 ? frames : 12)) --threads 2 --no-figures --quiet --out "$out/sweep"
     "$bin" simulate --scene scenes/default.yaml --frames "$frames" --quiet --out "$out/simulate"
     "$bin" synth --frames $((frames < 10 ? frames : 10)) --out "$out/synth" >/dev/null
