@@ -13,15 +13,23 @@
 namespace {
 using namespace linksight::sim;
 
+// The axial field: the preset's, two anisotropic fields, or one Matern-5/2 field of ranges
+// 7 x 8 px (issue 20): what each costs.
+enum class Field { preset, two_terms, matern };
+
 void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractParams::Mode mode,
-                    bool chain_only = false, bool two_terms = false) {
+                    bool chain_only = false, Field field = Field::preset) {
   Scene scene = load_scene(std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file);
   scene.segmentation.mode = mode;
-  if (two_terms) {  // the axial noise as two anisotropic fields (issue 20), what it costs
+  if (field == Field::two_terms) {
     scene.noise.axial.correlation_cols_px = 2.5;
     scene.noise.axial.low_share = 0.5;
     scene.noise.axial.low_rows_px = 6;
     scene.noise.axial.low_cols_px = 8;
+  } else if (field == Field::matern) {
+    scene.noise.axial.kernel = AxialKernel::matern52;
+    scene.noise.axial.correlation_px = 7;
+    scene.noise.axial.correlation_cols_px = 8;
   }
   auto world = make_world(scene);
   const double t = 2.3;
@@ -75,10 +83,17 @@ BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only, "default.yaml", ExtractPar
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 // Both again with the two-term axial field: widths 6 and 8 px, so its blur reaches 24 px.
 BENCHMARK_CAPTURE(BM_SensorFrame, default_truth_two_terms, "default.yaml",
-                  ExtractParams::Mode::truth, false, true)
+                  ExtractParams::Mode::truth, false, Field::two_terms)
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only_two_terms, "default.yaml",
-                  ExtractParams::Mode::truth, true, true)
+                  ExtractParams::Mode::truth, true, Field::two_terms)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+// And with one Matern field of ranges 7 x 8 px: its filter reaches 21 x 24 px.
+BENCHMARK_CAPTURE(BM_SensorFrame, default_truth_matern, "default.yaml",
+                  ExtractParams::Mode::truth, false, Field::matern)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only_matern, "default.yaml",
+                  ExtractParams::Mode::truth, true, Field::matern)
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_SensorFrame, occluder_pass_depth, "occluder_pass.yaml",
                   ExtractParams::Mode::depth)

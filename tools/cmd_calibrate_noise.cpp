@@ -288,9 +288,11 @@ Runner add_calibrate_noise(CLI::App& app) {
   app.add_option("--structure", o->structure,
                  "the axial field fitted: one-field (one isotropic width, the sr300 preset's) "
                  "or two-term (a pixel-scale and a low-frequency field, each with row and "
-                 "column widths; docs/sensor.md)")
+                 "column widths) or matern52 (one Matern-5/2 field with row and column ranges; "
+                 "docs/sensor.md)")
       ->check(CLI::IsMember({std::string(sim::to_string(sim::NoiseStructure::one_field)),
-                             std::string(sim::to_string(sim::NoiseStructure::two_term))}))
+                             std::string(sim::to_string(sim::NoiseStructure::two_term)),
+                             std::string(sim::to_string(sim::NoiseStructure::matern52))}))
       ->capture_default_str();
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");

@@ -584,16 +584,23 @@ struct WindowModel {
 
   // One field: Gaussian-blurred white noise of widths w_u (along rows), w_v (along
   // columns) correlates pixels du, dv apart by exp(-du^2 / (4 w_u^2)) exp(-dv^2 / (4 w_v^2));
-  // 0 is white. The covariance is the Kronecker product Cv (x) Cu: C M for a window-shaped
-  // M is Cu M Cv (n^3 per column instead of n^4), and trace(C M) sums n x n blocks.
-  // Without `correlations`, only the traces.
-  [[nodiscard]] FieldSums sums(double w_u, double w_v, bool correlations = true) const {
+  // 0 is white. A Matern-5/2 field of ranges w_u, w_v by the product of
+  // (1 + sqrt(5) d / w + 5 d^2 / (3 w^2)) exp(-sqrt(5) d / w) (AxialKernel). The covariance
+  // is the Kronecker product Cv (x) Cu: C M for a window-shaped M is Cu M Cv (n^3 per column
+  // instead of n^4), and trace(C M) sums n x n blocks. Without `correlations`, only the
+  // traces.
+  [[nodiscard]] FieldSums sums(double w_u, double w_v, bool correlations = true,
+                               AxialKernel shape = AxialKernel::gaussian) const {
     const int N = n * n;
     auto kernel = [&](double w) {
       Eigen::MatrixXd K = Eigen::MatrixXd::Identity(n, n);
       if (w > 0)
         for (int i = 0; i < n; ++i)
-          for (int j = 0; j < n; ++j) K(i, j) = std::exp(-double((i - j) * (i - j)) / (4 * w * w));
+          for (int j = 0; j < n; ++j) {
+            const double d = std::abs(i - j), x = std::sqrt(5.0) * d / w;
+            K(i, j) = shape == AxialKernel::matern52 ? (1 + x + x * x / 3) * std::exp(-x)
+                                                     : std::exp(-d * d / (4 * w * w));
+          }
       return K;
     };
     const Eigen::MatrixXd Cu = kernel(w_u), Cv = kernel(w_v);
@@ -656,7 +663,7 @@ struct WindowModel {
   [[nodiscard]] FieldSums sums(const AxialNoise& axial) const {
     const double s = axial.low_share;
     FieldSums f;
-    f.add(sums(axial.rows_px(), axial.cols_px()), 1 - s);
+    f.add(sums(axial.rows_px(), axial.cols_px(), true, axial.kernel), 1 - s);
     if (s > 0) f.add(sums(axial.low_rows_px, axial.low_cols_px), s);
     return f;
   }
@@ -727,7 +734,7 @@ std::pair<double, double> flat_sigmas(const DepthStats& s) {
 // share is a weighted sum of them; a pattern search refines the grid's best. Writes the
 // fitted terms into `ax`; returns the response of the fitted field at s.window.
 WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, AxialNoise& ax,
-                             std::vector<std::string>& notes) {
+                             std::vector<std::string>& notes, bool with_low = true) {
   auto less_shape = [](double x, double shape_x) {
     return std::sqrt(std::max(x * x - shape_x * shape_x, 0.01 * x * x));
   };
@@ -773,9 +780,10 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
     FieldSums main;
     std::vector<FieldSums> sides;
   };
-  auto sums_of = [&](double u, double v) {
-    Sums x{u, v, m.sums(u, v), {}};
-    for (const Side& sd : sides) x.sides.push_back(sd.model.sums(u, v, false));
+  // The pixel-scale field has ax.kernel's shape, the low one is Gaussian.
+  auto sums_of = [&](double u, double v, AxialKernel k = AxialKernel::gaussian) {
+    Sums x{u, v, m.sums(u, v, true, k), {}};
+    for (const Side& sd : sides) x.sides.push_back(sd.model.sums(u, v, false, k));
     return x;
   };
   Sums mix;  // scratch, reused
@@ -810,14 +818,18 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
     }
     return c;
   };
-  // Widths [px]: the pixel-scale field white or 0.4-4 px; the low one 1.5-20 px.
-  const std::vector<double> fine = {0.4, 0.6, 0.8, 1.0, 1.25, 1.5, 1.8, 2.2, 2.7, 3.3, 4.0};
+  // Widths [px]: the pixel-scale field white or 0.4-4 px (a Matern's ranges 1-20 px); the
+  // low one 1.5-20 px. Without the low field (with_low false), the pixel-scale one alone.
+  const bool matern = ax.kernel == AxialKernel::matern52;
+  const std::vector<double> fine = matern ? std::vector<double>{1.0, 1.5, 2.0, 2.7, 3.5, 4.5, 6.0, 8.0, 10.5, 14.0, 20.0}
+                                          : std::vector<double>{0.4, 0.6, 0.8, 1.0, 1.25, 1.5, 1.8, 2.2, 2.7, 3.3, 4.0};
   const std::vector<double> coarse = {1.5, 2.0, 2.7, 3.5, 4.5, 6.0, 8.0, 10.5, 14.0, 20.0};
   std::vector<Sums> pix = {sums_of(0, 0)}, low;
   for (const double u : fine)
-    for (const double v : fine) pix.push_back(sums_of(u, v));
-  for (const double u : coarse)
-    for (const double v : coarse) low.push_back(sums_of(u, v));
+    for (const double v : fine) pix.push_back(sums_of(u, v, ax.kernel));
+  if (with_low)
+    for (const double u : coarse)
+      for (const double v : coarse) low.push_back(sums_of(u, v));
   constexpr int kShares = 20;  // 0, 0.05, ..., 0.95
   double best = std::numeric_limits<double>::infinity();
   Eigen::Matrix<double, 5, 1> x;  // pixel u, v; share; low u, v
@@ -833,7 +845,7 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
   // to their ranges, and a share of 0 leaves the low field's widths alone.
   const bool white = x[0] == 0;
   auto eval = [&](const Eigen::Matrix<double, 5, 1>& y) {
-    const Sums a = sums_of(y[0], y[1]);
+    const Sums a = sums_of(y[0], y[1], y[0] > 0 ? ax.kernel : AxialKernel::gaussian);
     if (y[2] == 0) return cost(a);
     const Sums b = sums_of(y[3], y[4]);
     return cost(mixed(a, b, y[2]));
@@ -841,12 +853,12 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
   Eigen::Matrix<double, 5, 1> step;
   step << 0.1, 0.1, 0.025, 0.5, 0.5;
   Eigen::Matrix<double, 5, 1> lo, hi;
-  lo << 0.3, 0.3, 0, 0.5, 0.5;
-  hi << 4.0, 4.0, 0.95, 20, 20;
+  lo << (matern ? 1.0 : 0.3), (matern ? 1.0 : 0.3), 0, 0.5, 0.5;
+  hi << (matern ? 20.0 : 4.0), (matern ? 20.0 : 4.0), 0.95, 20, 20;
   for (int it = 0; it < 40 && step[2] > 1e-3; ++it) {
     bool moved = false;
     for (int d = 0; d < 5; ++d) {
-      if ((white && d < 2) || (x[2] == 0 && d > 2)) continue;
+      if ((white && d < 2) || (x[2] == 0 && d > 2) || (!with_low && d == 2)) continue;
       for (const double sign : {-1.0, 1.0}) {
         Eigen::Matrix<double, 5, 1> y = x;
         y[d] = std::clamp(y[d] + sign * step[d], lo[d], hi[d]);
@@ -864,12 +876,13 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
   std::string line(600, '\0');
   const int len = std::snprintf(
       line.data(), line.size(),
-      "structure: pixel-scale field %.2f x %.2f px (rows x columns), low-frequency field "
+      "structure: pixel-scale field (%s) %.2f x %.2f px (rows x columns), low-frequency field "
       "%.2f x %.2f px with %.2f of the variance; the model reads rows %.2f %.2f %.2f %.2f, "
       "columns %.2f %.2f %.2f %.2f at lags 1-4 (measured rows %.2f %.2f %.2f %.2f, columns "
       "%.2f %.2f %.2f %.2f), a quadratic/plane variance ratio %.2f (measured %.2f); %zu other "
       "window sides",
-      ax.rows_px(), ax.cols_px(), ax.low_rows_px, ax.low_cols_px, ax.low_share,
+      std::string(to_string(ax.kernel)).c_str(), ax.rows_px(), ax.cols_px(), ax.low_rows_px,
+      ax.low_cols_px, ax.low_share,
       r.correlation_rows[0], r.correlation_rows[1], r.correlation_rows[2], r.correlation_rows[3],
       r.correlation_cols[0], r.correlation_cols[1], r.correlation_cols[2], r.correlation_cols[3],
       s.correlation_rows[0], s.correlation_rows[1], s.correlation_rows[2], s.correlation_rows[3],
@@ -883,14 +896,20 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
 }  // namespace
 
 std::string_view to_string(NoiseStructure structure) {
-  return structure == NoiseStructure::one_field ? "one-field" : "two-term";
+  switch (structure) {
+    case NoiseStructure::one_field: return "one-field";
+    case NoiseStructure::two_term: return "two-term";
+    case NoiseStructure::matern52: return "matern52";
+  }
+  return "?";
 }
 
 NoiseStructure parse_noise_structure(std::string_view name) {
   if (name == "one-field") return NoiseStructure::one_field;
   if (name == "two-term") return NoiseStructure::two_term;
+  if (name == "matern52") return NoiseStructure::matern52;
   throw std::invalid_argument("noise structure '" + std::string(name) +
-                              "': expected one-field or two-term");
+                              "': expected one-field, two-term or matern52");
 }
 
 std::string_view to_string(FrameHalf half) {
@@ -949,10 +968,14 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
   ax.correlation_px = 0;
   ax.correlation_cols_px = 0;
   ax.low_share = 0;
+  ax.kernel = AxialKernel::gaussian;  // the one-field and two-term models' fields
   double variance_factor = window_response(0, window).variance_factor;
   const double rho1 = s.correlation[0];
   if (structure == NoiseStructure::two_term) {
     variance_factor = fit_structure(s, shape, ax, fit.notes).variance_factor;
+  } else if (structure == NoiseStructure::matern52) {
+    ax.kernel = AxialKernel::matern52;
+    variance_factor = fit_structure(s, shape, ax, fit.notes, false).variance_factor;
   } else if (rho1 > window_response(0.3, window).correlation[0]) {
     // Above about 4 px the reading saturates (near 0.9): a width there is not determined.
     double lo = 0.3, hi = 4.0;

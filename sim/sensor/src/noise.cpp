@@ -3,8 +3,19 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace linksight::sim {
+
+std::string_view to_string(AxialKernel kernel) {
+  return kernel == AxialKernel::matern52 ? "matern52" : "gaussian";
+}
+
+AxialKernel parse_axial_kernel(std::string_view name) {
+  if (name == "gaussian") return AxialKernel::gaussian;
+  if (name == "matern52") return AxialKernel::matern52;
+  throw std::invalid_argument("axial kernel '" + std::string(name) + "': expected gaussian or matern52");
+}
 
 AxialNoise::Point AxialNoise::point(double z, double theta) const {
   const double th = std::min(std::abs(theta), theta_cap);

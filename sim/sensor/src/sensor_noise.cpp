@@ -39,6 +39,27 @@ std::vector<float> unit_variance_gaussian(double s) {
   return k;
 }
 
+// The Matern-5/2 field's 1-D filter for range r [px]: the filter whose autocorrelation is
+// the covariance's, i.e. the square root of its spectrum (a + w^2)^-3 (a = 5 / r^2), which
+// is the Matern-1 function x K_1(x), x = sqrt(5) |i| / r (1 at i = 0); cut at 3 r, where
+// it has fallen below 1e-2 and its autocorrelation is within 0.005 of the Matern's at every
+// lag (r >= 3 px), and normalized to sum k^2 = 1 as the Gaussian's.
+std::vector<float> unit_variance_matern52(double r) {
+  const int R = static_cast<int>(std::ceil(3 * r));
+  const double alpha = std::sqrt(5.0) / r;
+  std::vector<double> g(static_cast<std::size_t>(2 * R + 1));
+  double sum2 = 0;
+  for (int i = -R; i <= R; ++i) {
+    const double x = alpha * std::abs(i);
+    const double v = i == 0 ? 1.0 : x * std::cyl_bessel_k(1.0, x);
+    g[static_cast<std::size_t>(i + R)] = v;
+    sum2 += v * v;
+  }
+  std::vector<float> k(g.size());
+  for (std::size_t i = 0; i < g.size(); ++i) k[i] = static_cast<float>(g[i] / std::sqrt(sum2));
+  return k;
+}
+
 // The separable blur of a w x h row-major field, one pass each way. Every output sums
 // kernel[i + R] * input over the taps inside the field, i ascending from 0, the same float
 // operations in the same order whatever the thread count; the loops run along rows, so
@@ -82,8 +103,9 @@ SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
   camera.validate();
   const AxialNoise& ax = noise.axial;
   if (ax.rows_px() > 0) {
-    rows_kernel_ = unit_variance_gaussian(ax.rows_px());
-    cols_kernel_ = unit_variance_gaussian(ax.cols_px());
+    const auto taps = ax.kernel == AxialKernel::matern52 ? unit_variance_matern52 : unit_variance_gaussian;
+    rows_kernel_ = taps(ax.rows_px());
+    cols_kernel_ = taps(ax.cols_px());
   }
   if (ax.low_share > 0) {
     low_rows_kernel_ = unit_variance_gaussian(ax.low_rows_px);

@@ -455,23 +455,14 @@ TEST(DepthStats, WindowResponseOfCorrelatedNoise) {
   EXPECT_THROW((void)window_response(1.0, 3), std::invalid_argument);
 }
 
-// The two-term anisotropic field (issue 20) through the estimator: the sensor's field on a
-// fronto-parallel wall, read by depth_stats, gives what window_response predicts along rows
-// and along columns, and the quadratic-to-plane sigma ratio; the one-field isotropic model
-// reads the same both ways.
-TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
-  constexpr double kRhoTol = 0.03;       // seen: within 0.009
-  constexpr double kRatioRelTol = 0.03;  // the quadratic's sigma over the plane's (seen: 0.1%)
-  NoiseParams n = NoiseParams::off();
+// An axial field alone (sigma a, quantized as the camera's) on a fronto-parallel wall at
+// 0.6 m filling the default camera's image, 6 frames, read by depth_stats; `n` gets the
+// rest of the setting.
+DepthStats wall_field_stats(NoiseParams& n, double a = 0.001) {
   n.axial.enabled = true;
-  n.axial.a = 0.001;
+  n.axial.a = a;
   n.axial.c = 0;
   n.axial.k_theta = 0;
-  n.axial.correlation_px = 1.2;
-  n.axial.correlation_cols_px = 2.0;
-  n.axial.low_share = 0.5;
-  n.axial.low_rows_px = 5;
-  n.axial.low_cols_px = 8;
   n.quantize = true;  // 0.125 mm steps under 1 mm noise, as the camera's
   const CameraParams camera;
   const std::size_t pixels = static_cast<std::size_t>(camera.intrinsics.width) * camera.intrinsics.height;
@@ -483,12 +474,33 @@ TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
   std::vector<io::DepthImage> frames(6);
   std::vector<float> depth_m;
   for (std::size_t f = 0; f < frames.size(); ++f) noise.apply(wall, 4, f, 2, frames[f], depth_m);
-  const DepthStats s = depth_stats(frames, camera.intrinsics);
-  const WindowResponse r = window_response(n.axial, s.window);
+  return depth_stats(frames, camera.intrinsics);
+}
+
+// `s` reads along rows and along columns at every lag what `r` predicts, within `tol`.
+void expect_reads_as(const DepthStats& s, const WindowResponse& r, double tol) {
   for (int l = 0; l < kCorrelationLags; ++l) {
-    EXPECT_NEAR(s.correlation_rows[l], r.correlation_rows[l], kRhoTol) << "rows, lag " << l + 1;
-    EXPECT_NEAR(s.correlation_cols[l], r.correlation_cols[l], kRhoTol) << "columns, lag " << l + 1;
+    EXPECT_NEAR(s.correlation_rows[l], r.correlation_rows[l], tol) << "rows, lag " << l + 1;
+    EXPECT_NEAR(s.correlation_cols[l], r.correlation_cols[l], tol) << "columns, lag " << l + 1;
   }
+}
+
+// The two-term anisotropic field (issue 20) through the estimator: the sensor's field on a
+// fronto-parallel wall, read by depth_stats, gives what window_response predicts along rows
+// and along columns, and the quadratic-to-plane sigma ratio; the one-field isotropic model
+// reads the same both ways.
+TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
+  constexpr double kRhoTol = 0.03;       // seen: within 0.009
+  constexpr double kRatioRelTol = 0.03;  // the quadratic's sigma over the plane's (seen: 0.1%)
+  NoiseParams n = NoiseParams::off();
+  n.axial.correlation_px = 1.2;
+  n.axial.correlation_cols_px = 2.0;
+  n.axial.low_share = 0.5;
+  n.axial.low_rows_px = 5;
+  n.axial.low_cols_px = 8;
+  const DepthStats s = wall_field_stats(n);
+  const WindowResponse r = window_response(n.axial, s.window);
+  expect_reads_as(s, r, kRhoTol);
   EXPECT_GT(r.correlation_cols[2] - r.correlation_rows[2], 0.1);  // anisotropic, and read so
   ASSERT_EQ(s.scales.size(), 3u);
   EXPECT_NEAR(s.scales[1].sigma_quad / s.scales[1].sigma,
@@ -529,12 +541,57 @@ TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
   EXPECT_EQ(fit.notes[0].rfind("structure: ", 0), 0u) << fit.notes[0];
 }
 
+// The Matern-5/2 field (issue 20) through the estimator: the sensor's field on a
+// fronto-parallel wall, read by depth_stats, gives what window_response predicts along rows
+// and along columns; the matern52 structure fit reads back as the field does, with sigma.
+TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
+  constexpr double kRhoTol = 0.03;       // seen: within 0.01
+  constexpr double kRatioRelTol = 0.05;  // the quadratic's sigma over the plane's (seen: 1%)
+  NoiseParams n = NoiseParams::off();
+  n.axial.kernel = AxialKernel::matern52;
+  n.axial.correlation_px = 3.0;
+  n.axial.correlation_cols_px = 6.0;
+  const DepthStats s = wall_field_stats(n);
+  const WindowResponse r = window_response(n.axial, s.window);
+  expect_reads_as(s, r, kRhoTol);
+  ASSERT_EQ(s.scales.size(), 3u);
+  const double ratio = std::sqrt(r.quad_variance_factor / r.variance_factor);
+  EXPECT_NEAR(s.scales[1].sigma_quad / s.scales[1].sigma, ratio, kRatioRelTol * ratio);
+  constexpr double kFitRhoTol = 0.05;       // seen: within 0.02
+  constexpr double kFitSigmaRelTol = 0.15;  // seen: 3%
+  const NoiseFit fit = fit_noise(s, NoiseParams::sr300(), nullptr, NoiseStructure::matern52);
+  const AxialNoise& f = fit.params.axial;
+  EXPECT_EQ(f.kernel, AxialKernel::matern52);
+  EXPECT_EQ(f.low_share, 0.0);
+  const WindowResponse fr = window_response(f, s.window);
+  for (int l = 0; l < 4; ++l) {
+    EXPECT_NEAR(fr.correlation_rows[l], s.correlation_rows[l], kFitRhoTol) << "rows, lag " << l + 1;
+    EXPECT_NEAR(fr.correlation_cols[l], s.correlation_cols[l], kFitRhoTol) << "columns, lag " << l + 1;
+  }
+  EXPECT_GT(f.cols_px(), f.rows_px());
+  EXPECT_NEAR(f.sigma(0.6, 0.0), n.axial.a, kFitSigmaRelTol * n.axial.a);
+  ASSERT_FALSE(fit.notes.empty());
+  EXPECT_EQ(fit.notes[0].rfind("structure: pixel-scale field (matern52)", 0), 0u) << fit.notes[0];
+  // The one-field fit stays the Gaussian's whatever the start's kernel.
+  NoiseParams start = NoiseParams::sr300();
+  start.axial.kernel = AxialKernel::matern52;
+  EXPECT_EQ(fit_noise(s, start).params.axial.kernel, AxialKernel::gaussian);
+  EXPECT_EQ(parse_noise_structure("matern52"), NoiseStructure::matern52);
+  EXPECT_EQ(to_string(NoiseStructure::matern52), "matern52");
+  EXPECT_NE(test::error_of<std::invalid_argument>([] { (void)parse_noise_structure("cauchy"); })
+                .find("'cauchy': expected one-field, two-term or matern52"),
+            std::string::npos);
+}
+
 // window_response sums the fields' covariance as a Kronecker product; the dense sums of
 // the definition (C, the plane's and quadratic's residual makers P and Q, entry by entry)
 // give the same figures.
 TEST(DepthStats, WindowResponseIsTheDenseSum) {
+  for (const AxialKernel kernel : {AxialKernel::gaussian, AxialKernel::matern52}) {
+  SCOPED_TRACE(to_string(kernel));
   constexpr int n = 9, N = n * n;
   AxialNoise ax;
+  ax.kernel = kernel;  // the pixel-scale field's; the low one is Gaussian
   ax.correlation_px = 0.9;
   ax.correlation_cols_px = 1.7;
   ax.low_share = 0.4;
@@ -547,7 +604,12 @@ TEST(DepthStats, WindowResponseIsTheDenseSum) {
       auto rho = [&](double wu, double wv) {
         return std::exp(-du * du / (4 * wu * wu) - dv * dv / (4 * wv * wv));
       };
-      C(a, b) = (1 - ax.low_share) * rho(0.9, 1.7) + ax.low_share * rho(3, 7);
+      auto matern = [](double d, double r) {
+        const double x = std::sqrt(5.0) * std::abs(d) / r;
+        return (1 + x + x * x / 3) * std::exp(-x);
+      };
+      const double pixel = kernel == AxialKernel::matern52 ? matern(du, 0.9) * matern(dv, 1.7) : rho(0.9, 1.7);
+      C(a, b) = (1 - ax.low_share) * pixel + ax.low_share * rho(3, 7);
     }
   auto residual_maker = [&](int terms) {
     Eigen::MatrixXd X(N, terms);
@@ -577,6 +639,7 @@ TEST(DepthStats, WindowResponseIsTheDenseSum) {
     if (lag <= 4) {
       EXPECT_NEAR(r.correlation[lag - 1], (ab + ab_c) / std::sqrt((aa + aa_c) * (bb + bb_c)), kTol);
     }
+  }
   }
 }
 

@@ -150,6 +150,9 @@ TEST_F(BadScene, SensorKeysNameLineAndKey) {
   has("noise:\n  dropouts: {hole_median_px: 5, hole_p90_px: 3}\n",
       ":2: noise.dropouts.hole_p90_px = 3: must be >= hole_median_px (5)");
   has("noise:\n  axial: {sigma: 1}\n", "noise.axial.sigma: unknown key");
+  has("noise:\n  axial: {kernel: cauchy}\n",
+      ":2: noise.axial.kernel: axial kernel 'cauchy': expected gaussian or matern52");
+  has("noise:\n  axial: {correlation_px: 21}\n", ":2: noise.axial.correlation_px = 21: must be in [0, 20]");
   has("occluders:\n  - shape: cone\n", ":2: occluders[0].shape: unknown shape 'cone' (expected box, cylinder, sphere or mesh)");
   has("occluders:\n  - shape: mesh\n    mesh: nowhere/hand.obj\n",
       ":3: occluders[0].mesh: " + (dir / "nowhere/hand.obj").string() + ": mesh file not found");
@@ -222,6 +225,7 @@ TEST_F(BadScene, NoiseBlockReadsBackToTheSameNoise) {
   NoiseParams n = NoiseParams::sr300();
   n.axial.a = 1.0 / 30000;
   n.axial.theta_cap = 0.123456789;
+  n.axial.kernel = AxialKernel::matern52;
   n.edges.enabled = false;
   n.quantize = false;
   const auto p = dir / "noise.yaml";
@@ -230,6 +234,7 @@ TEST_F(BadScene, NoiseBlockReadsBackToTheSameNoise) {
   EXPECT_EQ(m.axial.a, n.axial.a);
   EXPECT_EQ(m.axial.theta_cap, n.axial.theta_cap);
   EXPECT_EQ(m.axial.correlation_px, n.axial.correlation_px);
+  EXPECT_EQ(m.axial.kernel, AxialKernel::matern52);
   EXPECT_FALSE(m.edges.enabled);
   EXPECT_FALSE(m.quantize);
   EXPECT_EQ(m.dropouts.hole_p90_px, n.dropouts.hole_p90_px);

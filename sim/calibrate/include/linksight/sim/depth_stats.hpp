@@ -221,9 +221,11 @@ struct NoiseFit {
 /// isotropic field (the sr300 preset's); `two_term` a pixel-scale field with its own widths
 /// along rows and columns plus a low-frequency field with its own widths and share of the
 /// variance (docs/sensor.md: on the shared SR305 frames it does not yet read as the camera
-/// does, so it is not the default).
-enum class NoiseStructure { one_field, two_term };
-/// "one-field" / "two-term"; parse throws std::invalid_argument naming the value and choices.
+/// does, so it is not the default); `matern52` one Matern-5/2 field (AxialKernel) with its
+/// own ranges along rows and columns, fitted to the same readings as `two_term`.
+enum class NoiseStructure { one_field, two_term, matern52 };
+/// "one-field" / "two-term" / "matern52"; parse throws std::invalid_argument naming the
+/// value and choices.
 [[nodiscard]] std::string_view to_string(NoiseStructure structure);
 [[nodiscard]] NoiseStructure parse_noise_structure(std::string_view name);
 

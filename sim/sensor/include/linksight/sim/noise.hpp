@@ -7,10 +7,22 @@
 
 #include <numbers>
 #include <string>
+#include <string_view>
 
 #include "linksight/tracker/fields.hpp"
 
 namespace linksight::sim {
+
+/// The shape of the pixel-scale axial field's correlation (AxialNoise::kernel).
+/// - `gaussian`: white noise blurred by a Gaussian of standard deviation w [px];
+///   neighbours at lag L correlate by exp(-L^2 / (4 w^2)).
+/// - `matern52`: a Matern-5/2 covariance of range r [px],
+///   (1 + sqrt(5) L / r + 5 L^2 / (3 r^2)) exp(-sqrt(5) L / r): smooth like the Gaussian
+///   near 0 but with a longer tail, what the real SR305 frames read (docs/sensor.md).
+enum class AxialKernel { gaussian, matern52 };
+/// "gaussian" / "matern52"; parse throws std::invalid_argument naming the value and choices.
+[[nodiscard]] std::string_view to_string(AxialKernel kernel);
+[[nodiscard]] AxialKernel parse_axial_kernel(std::string_view name);
 
 /// Axial (along the optical axis) Gaussian noise:
 /// sigma_z(z, theta) = a + c z^2 + k_theta / sqrt(z) * theta^2 / (pi/2 - theta)^2,
@@ -25,11 +37,15 @@ struct AxialNoise {
   double theta_cap = 80.0 * std::numbers::pi / 180.0;
   /// Spatial correlation: the unit normal field is a white field blurred by a Gaussian of
   /// this standard deviation [px] and rescaled to unit variance, so neighbours at lag L
-  /// correlate by exp(-L^2 / (4 s^2)). 0: white (every pixel its own draw).
+  /// correlate by exp(-L^2 / (4 s^2)); with `kernel` matern52, filtered to a Matern-5/2
+  /// covariance of this range [px]. 0: white (every pixel its own draw).
   double correlation_px = 1.6;  ///< (fitted: the camera filters its depth)
   /// The same width along columns (v) where it differs from the rows' (u) [px]; 0: the
   /// same as correlation_px (isotropic).
   double correlation_cols_px = 0;
+  /// What correlation_px and correlation_cols_px are the widths of: `gaussian` (above, the
+  /// preset's) or `matern52` (their Matern-5/2 ranges; AxialKernel).
+  AxialKernel kernel = AxialKernel::gaussian;
   /// A second, low-frequency term (issue 20): a unit field of its own, blurred by a
   /// Gaussian of low_rows_px along rows and low_cols_px along columns, takes this share of
   /// the axial variance sigma_z^2 and the pixel-scale term above the rest. 0: off, the
@@ -63,8 +79,9 @@ struct AxialNoise {
     ar("c_per_m", c, fields::in(0, 0.1));
     ar("k_theta", k_theta, fields::in(0, 0.1));
     ar("theta_cap_deg", theta_cap, fields::deg(fields::in(0, 89.9)));
-    ar("correlation_px", correlation_px, fields::in(0, 10));
-    ar("correlation_cols_px", correlation_cols_px, fields::in(0, 10));
+    ar("correlation_px", correlation_px, fields::in(0, 20));
+    ar("correlation_cols_px", correlation_cols_px, fields::in(0, 20));
+    ar("kernel", kernel, parse_axial_kernel);
     ar("low_share", low_share, fields::in(0, 0.95));
     ar("low_rows_px", low_rows_px, fields::in(0.5, 20));
     ar("low_cols_px", low_cols_px, fields::in(0.5, 20));
