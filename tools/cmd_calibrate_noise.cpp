@@ -36,6 +36,13 @@ struct CalibrateOptions {
   std::string half = "all";             // sim::FrameHalf
 };
 
+// The --structure values, from the structures' one list.
+std::vector<std::string> structure_names() {
+  std::vector<std::string> names;
+  for (const sim::NoiseStructure s : sim::kNoiseStructures) names.emplace_back(sim::to_string(s));
+  return names;
+}
+
 std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames,
                        const std::string& half) {
   const sim::NoiseParams& n = fit.params;
@@ -290,9 +297,7 @@ Runner add_calibrate_noise(CLI::App& app) {
                  "or two-term (a pixel-scale and a low-frequency field, each with row and "
                  "column widths) or matern52 (one Matern-5/2 field with row and column ranges; "
                  "docs/sensor.md)")
-      ->check(CLI::IsMember({std::string(sim::to_string(sim::NoiseStructure::one_field)),
-                             std::string(sim::to_string(sim::NoiseStructure::two_term)),
-                             std::string(sim::to_string(sim::NoiseStructure::matern52))}))
+      ->check(CLI::IsMember(structure_names()))
       ->capture_default_str();
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");

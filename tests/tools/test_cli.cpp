@@ -1636,21 +1636,30 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   };
   for (const auto& t : terms)
     EXPECT_NEAR(t.fitted, t.preset, kPresetRelTol * std::abs(t.preset)) << t.what;
-  // The two-term structure (docs/sensor.md): a block a scene accepts, with both fields.
-  const fs::path two = dir / "two_term.yaml";
-  const CliRun r2 = run("calibrate-noise --structure two-term --quiet --input " +
-                            (real / "frames").string() + " --intrinsics " +
-                            (real / "intrinsics.json").string() + " --out " + two.string(),
-                        dir);
-  ASSERT_EQ(r2.code, 0) << r2.err;
-  std::ifstream block2(two);
-  std::stringstream text2;
-  text2 << block2.rdbuf();
-  EXPECT_NE(text2.str().find("# note: structure: "), std::string::npos) << text2.str();
-  std::ofstream(dir / "scene2.yaml") << "duration_s: 0.1\n" << text2.str();
-  const sim::Scene scene2 = sim::load_scene(dir / "scene2.yaml");
-  EXPECT_GT(scene2.noise.axial.correlation_px, 1.0);
-  EXPECT_GT(scene2.noise.axial.correlation_cols_px, 0.0);
+  // The two-term and Matern structures (docs/sensor.md): blocks a scene accepts, with
+  // their fields and kernels.
+  const auto structure_scene = [&](const std::string& structure) {
+    const fs::path written = dir / (structure + ".yaml");
+    const CliRun r2 = run("calibrate-noise --structure " + structure + " --quiet --input " +
+                              (real / "frames").string() + " --intrinsics " +
+                              (real / "intrinsics.json").string() + " --out " + written.string(),
+                          dir);
+    EXPECT_EQ(r2.code, 0) << r2.err;
+    const std::string text2 = slurp_text(written);
+    EXPECT_NE(text2.find("# note: structure: "), std::string::npos) << text2;
+    std::ofstream(dir / "scene2.yaml") << "duration_s: 0.1\n" << text2;
+    return sim::load_scene(dir / "scene2.yaml").noise.axial;
+  };
+  const sim::AxialNoise two = structure_scene("two-term");
+  EXPECT_EQ(two.kernel, sim::AxialKernel::gaussian);
+  EXPECT_GT(two.correlation_px, 1.0);
+  EXPECT_GT(two.correlation_cols_px, 0.0);
+  // On these frames 5.94 x 6.98 px (docs/sensor.md): longer along columns, as the camera.
+  const sim::AxialNoise matern = structure_scene("matern52");
+  EXPECT_EQ(matern.kernel, sim::AxialKernel::matern52);
+  EXPECT_EQ(matern.low_share, 0.0);
+  EXPECT_GE(matern.correlation_px, sim::kMinMaternRangePx);
+  EXPECT_GT(matern.correlation_cols_px, matern.correlation_px);
 }
 
 TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {

@@ -729,7 +729,9 @@ std::pair<double, double> flat_sigmas(const DepthStats& s) {
 // noise a quadratic takes up); and, at each other window side of s.scales, the plane and
 // quadratic variance over those at s.window (how the noise grows with the window: what pins
 // the low field's widths, which the correlation in one window hardly sees). `shape`'s
-// sigmas are taken out of the variances in quadrature. The sums are linear in the
+// sigmas are taken out of the variances in quadrature. The pixel-scale field has ax.kernel's
+// shape (a Matern's ranges 3-20 px, never white); without `with_low`, it alone is fitted
+// (no low field, share 0). The sums are linear in the
 // covariance, so each field's are computed once per pair of widths on a grid and every
 // share is a weighted sum of them; a pattern search refines the grid's best. Writes the
 // fitted terms into `ax`; returns the response of the fitted field at s.window.
@@ -818,13 +820,14 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
     }
     return c;
   };
-  // Widths [px]: the pixel-scale field white or 0.4-4 px (a Matern's ranges 1-20 px); the
-  // low one 1.5-20 px. Without the low field (with_low false), the pixel-scale one alone.
+  // Widths [px]: the pixel-scale field white or 0.4-4 px (a Matern's ranges 3-20 px, where
+  // its filter follows the covariance: AxialNoise); the low one 1.5-20 px.
   const bool matern = ax.kernel == AxialKernel::matern52;
-  const std::vector<double> fine = matern ? std::vector<double>{1.0, 1.5, 2.0, 2.7, 3.5, 4.5, 6.0, 8.0, 10.5, 14.0, 20.0}
+  const std::vector<double> fine = matern ? std::vector<double>{kMinMaternRangePx, 3.5, 4.5, 6.0, 8.0, 10.5, 14.0, 20.0}
                                           : std::vector<double>{0.4, 0.6, 0.8, 1.0, 1.25, 1.5, 1.8, 2.2, 2.7, 3.3, 4.0};
   const std::vector<double> coarse = {1.5, 2.0, 2.7, 3.5, 4.5, 6.0, 8.0, 10.5, 14.0, 20.0};
-  std::vector<Sums> pix = {sums_of(0, 0)}, low;
+  std::vector<Sums> pix, low;
+  if (!matern) pix.push_back(sums_of(0, 0));
   for (const double u : fine)
     for (const double v : fine) pix.push_back(sums_of(u, v, ax.kernel));
   if (with_low)
@@ -845,7 +848,7 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
   // to their ranges, and a share of 0 leaves the low field's widths alone.
   const bool white = x[0] == 0;
   auto eval = [&](const Eigen::Matrix<double, 5, 1>& y) {
-    const Sums a = sums_of(y[0], y[1], y[0] > 0 ? ax.kernel : AxialKernel::gaussian);
+    const Sums a = sums_of(y[0], y[1], ax.kernel);
     if (y[2] == 0) return cost(a);
     const Sums b = sums_of(y[3], y[4]);
     return cost(mixed(a, b, y[2]));
@@ -853,7 +856,7 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
   Eigen::Matrix<double, 5, 1> step;
   step << 0.1, 0.1, 0.025, 0.5, 0.5;
   Eigen::Matrix<double, 5, 1> lo, hi;
-  lo << (matern ? 1.0 : 0.3), (matern ? 1.0 : 0.3), 0, 0.5, 0.5;
+  lo << (matern ? kMinMaternRangePx : 0.3), (matern ? kMinMaternRangePx : 0.3), 0, 0.5, 0.5;
   hi << (matern ? 20.0 : 4.0), (matern ? 20.0 : 4.0), 0.95, 20, 20;
   for (int it = 0; it < 40 && step[2] > 1e-3; ++it) {
     bool moved = false;
@@ -905,9 +908,8 @@ std::string_view to_string(NoiseStructure structure) {
 }
 
 NoiseStructure parse_noise_structure(std::string_view name) {
-  if (name == "one-field") return NoiseStructure::one_field;
-  if (name == "two-term") return NoiseStructure::two_term;
-  if (name == "matern52") return NoiseStructure::matern52;
+  for (const NoiseStructure s : kNoiseStructures)
+    if (name == to_string(s)) return s;
   throw std::invalid_argument("noise structure '" + std::string(name) +
                               "': expected one-field, two-term or matern52");
 }

@@ -48,6 +48,13 @@ void NoiseParams::validate() const {
   if (!(dropouts.hole_p90_px >= dropouts.hole_median_px))
     fields::fail("noise", "dropouts.hole_p90_px", dropouts.hole_p90_px,
                  "must be >= hole_median_px (" + format_shortest(dropouts.hole_median_px) + ")");
+  if (axial.kernel == AxialKernel::matern52)
+    for (const auto& [key, r] : {std::pair{"axial.correlation_px", axial.correlation_px},
+                                 std::pair{"axial.correlation_cols_px", axial.correlation_cols_px}})
+      if (r > 0 && r < kMinMaternRangePx)
+        fields::fail("noise", key, r,
+                     "must be 0 or >= " + format_shortest(kMinMaternRangePx) +
+                         " with kernel matern52 (its filter follows the covariance from there)");
   if (axial.correlation_cols_px > 0 && !(axial.correlation_px > 0))
     fields::fail("noise", "axial.correlation_cols_px", axial.correlation_cols_px,
                  "needs correlation_px > 0 (a white pixel-scale term has no width)");

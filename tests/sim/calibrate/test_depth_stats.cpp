@@ -549,8 +549,8 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   constexpr double kRatioRelTol = 0.05;  // the quadratic's sigma over the plane's (seen: 1%)
   NoiseParams n = NoiseParams::off();
   n.axial.kernel = AxialKernel::matern52;
-  n.axial.correlation_px = 3.0;
-  n.axial.correlation_cols_px = 6.0;
+  n.axial.correlation_px = 4.0;
+  n.axial.correlation_cols_px = 7.0;
   const DepthStats s = wall_field_stats(n);
   const WindowResponse r = window_response(n.axial, s.window);
   expect_reads_as(s, r, kRhoTol);
@@ -558,7 +558,8 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   const double ratio = std::sqrt(r.quad_variance_factor / r.variance_factor);
   EXPECT_NEAR(s.scales[1].sigma_quad / s.scales[1].sigma, ratio, kRatioRelTol * ratio);
   constexpr double kFitRhoTol = 0.05;       // seen: within 0.02
-  constexpr double kFitSigmaRelTol = 0.15;  // seen: 3%
+  constexpr double kFitRangeRelTol = 0.10;  // seen: 4.2 x 7.3 px for 4 x 7
+  constexpr double kFitSigmaRelTol = 0.10;  // seen: 4%
   const NoiseFit fit = fit_noise(s, NoiseParams::sr300(), nullptr, NoiseStructure::matern52);
   const AxialNoise& f = fit.params.axial;
   EXPECT_EQ(f.kernel, AxialKernel::matern52);
@@ -568,7 +569,10 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
     EXPECT_NEAR(fr.correlation_rows[l], s.correlation_rows[l], kFitRhoTol) << "rows, lag " << l + 1;
     EXPECT_NEAR(fr.correlation_cols[l], s.correlation_cols[l], kFitRhoTol) << "columns, lag " << l + 1;
   }
-  EXPECT_GT(f.cols_px(), f.rows_px());
+  // One field's two ranges are pinned by these readings, unlike the two-term fit's five
+  // parameters: they come back.
+  EXPECT_NEAR(f.rows_px(), 4.0, kFitRangeRelTol * 4.0);
+  EXPECT_NEAR(f.cols_px(), 7.0, kFitRangeRelTol * 7.0);
   EXPECT_NEAR(f.sigma(0.6, 0.0), n.axial.a, kFitSigmaRelTol * n.axial.a);
   ASSERT_FALSE(fit.notes.empty());
   EXPECT_EQ(fit.notes[0].rfind("structure: pixel-scale field (matern52)", 0), 0u) << fit.notes[0];
@@ -588,58 +592,60 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
 // give the same figures.
 TEST(DepthStats, WindowResponseIsTheDenseSum) {
   for (const AxialKernel kernel : {AxialKernel::gaussian, AxialKernel::matern52}) {
-  SCOPED_TRACE(to_string(kernel));
-  constexpr int n = 9, N = n * n;
-  AxialNoise ax;
-  ax.kernel = kernel;  // the pixel-scale field's; the low one is Gaussian
-  ax.correlation_px = 0.9;
-  ax.correlation_cols_px = 1.7;
-  ax.low_share = 0.4;
-  ax.low_rows_px = 3;
-  ax.low_cols_px = 7;
-  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(N, N);
-  for (int a = 0; a < N; ++a)
-    for (int b = 0; b < N; ++b) {
-      const double du = a % n - b % n, dv = a / n - b / n;
-      auto rho = [&](double wu, double wv) {
-        return std::exp(-du * du / (4 * wu * wu) - dv * dv / (4 * wv * wv));
-      };
-      auto matern = [](double d, double r) {
-        const double x = std::sqrt(5.0) * std::abs(d) / r;
-        return (1 + x + x * x / 3) * std::exp(-x);
-      };
-      const double pixel = kernel == AxialKernel::matern52 ? matern(du, 0.9) * matern(dv, 1.7) : rho(0.9, 1.7);
-      C(a, b) = (1 - ax.low_share) * pixel + ax.low_share * rho(3, 7);
+    SCOPED_TRACE(to_string(kernel));
+    constexpr int n = 9, N = n * n;
+    AxialNoise ax;
+    ax.kernel = kernel;  // the pixel-scale field's; the low one is Gaussian
+    const bool matern = kernel == AxialKernel::matern52;  // ranges from 3 px (AxialNoise)
+    const double wu = matern ? 3.5 : 0.9, wv = matern ? 5.0 : 1.7;
+    ax.correlation_px = wu;
+    ax.correlation_cols_px = wv;
+    ax.low_share = 0.4;
+    ax.low_rows_px = 3;
+    ax.low_cols_px = 7;
+    Eigen::MatrixXd C = Eigen::MatrixXd::Zero(N, N);
+    for (int a = 0; a < N; ++a)
+      for (int b = 0; b < N; ++b) {
+        const double du = a % n - b % n, dv = a / n - b / n;
+        auto rho = [&](double su, double sv) {
+          return std::exp(-du * du / (4 * su * su) - dv * dv / (4 * sv * sv));
+        };
+        auto matern_rho = [](double d, double r) {
+          const double x = std::sqrt(5.0) * std::abs(d) / r;
+          return (1 + x + x * x / 3) * std::exp(-x);
+        };
+        const double pixel = matern ? matern_rho(du, wu) * matern_rho(dv, wv) : rho(wu, wv);
+        C(a, b) = (1 - ax.low_share) * pixel + ax.low_share * rho(3, 7);
+      }
+    auto residual_maker = [&](int terms) {
+      Eigen::MatrixXd X(N, terms);
+      for (int a = 0; a < N; ++a) {
+        const double x = (a % n - 0.5 * (n - 1)) / n, y = (a / n - 0.5 * (n - 1)) / n;
+        const double all[6] = {1.0, x, y, x * x, x * y, y * y};
+        for (int t = 0; t < terms; ++t) X(a, t) = all[t];
+      }
+      return Eigen::MatrixXd(Eigen::MatrixXd::Identity(N, N) -
+                             X * (X.transpose() * X).inverse() * X.transpose());
+    };
+    const Eigen::MatrixXd P = residual_maker(3), Q = residual_maker(6);
+    const Eigen::MatrixXd QCQ = Q * C * Q;
+    const WindowResponse r = window_response(ax, n);
+    constexpr double kTol = 1e-10;
+    EXPECT_NEAR(r.variance_factor, (P * C * P).trace() / (N - 3), kTol);
+    EXPECT_NEAR(r.quad_variance_factor, QCQ.trace() / (N - 6), kTol);
+    for (int lag = 1; lag <= kCorrelationLags; ++lag) {
+      double ab = 0, aa = 0, bb = 0, ab_c = 0, aa_c = 0, bb_c = 0;
+      for (int a = 0; a < N; ++a) {
+        if (a % n + lag < n) ab += QCQ(a, a + lag), aa += QCQ(a, a), bb += QCQ(a + lag, a + lag);
+        if (a / n + lag < n)
+          ab_c += QCQ(a, a + lag * n), aa_c += QCQ(a, a), bb_c += QCQ(a + lag * n, a + lag * n);
+      }
+      EXPECT_NEAR(r.correlation_rows[lag - 1], ab / std::sqrt(aa * bb), kTol) << lag;
+      EXPECT_NEAR(r.correlation_cols[lag - 1], ab_c / std::sqrt(aa_c * bb_c), kTol) << lag;
+      if (lag <= 4) {
+        EXPECT_NEAR(r.correlation[lag - 1], (ab + ab_c) / std::sqrt((aa + aa_c) * (bb + bb_c)), kTol);
+      }
     }
-  auto residual_maker = [&](int terms) {
-    Eigen::MatrixXd X(N, terms);
-    for (int a = 0; a < N; ++a) {
-      const double x = (a % n - 0.5 * (n - 1)) / n, y = (a / n - 0.5 * (n - 1)) / n;
-      const double all[6] = {1.0, x, y, x * x, x * y, y * y};
-      for (int t = 0; t < terms; ++t) X(a, t) = all[t];
-    }
-    return Eigen::MatrixXd(Eigen::MatrixXd::Identity(N, N) -
-                           X * (X.transpose() * X).inverse() * X.transpose());
-  };
-  const Eigen::MatrixXd P = residual_maker(3), Q = residual_maker(6);
-  const Eigen::MatrixXd QCQ = Q * C * Q;
-  const WindowResponse r = window_response(ax, n);
-  constexpr double kTol = 1e-10;
-  EXPECT_NEAR(r.variance_factor, (P * C * P).trace() / (N - 3), kTol);
-  EXPECT_NEAR(r.quad_variance_factor, QCQ.trace() / (N - 6), kTol);
-  for (int lag = 1; lag <= kCorrelationLags; ++lag) {
-    double ab = 0, aa = 0, bb = 0, ab_c = 0, aa_c = 0, bb_c = 0;
-    for (int a = 0; a < N; ++a) {
-      if (a % n + lag < n) ab += QCQ(a, a + lag), aa += QCQ(a, a), bb += QCQ(a + lag, a + lag);
-      if (a / n + lag < n)
-        ab_c += QCQ(a, a + lag * n), aa_c += QCQ(a, a), bb_c += QCQ(a + lag * n, a + lag * n);
-    }
-    EXPECT_NEAR(r.correlation_rows[lag - 1], ab / std::sqrt(aa * bb), kTol) << lag;
-    EXPECT_NEAR(r.correlation_cols[lag - 1], ab_c / std::sqrt(aa_c * bb_c), kTol) << lag;
-    if (lag <= 4) {
-      EXPECT_NEAR(r.correlation[lag - 1], (ab + ab_c) / std::sqrt((aa + aa_c) * (bb + bb_c)), kTol);
-    }
-  }
   }
 }
 

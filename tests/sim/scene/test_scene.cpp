@@ -153,6 +153,8 @@ TEST_F(BadScene, SensorKeysNameLineAndKey) {
   has("noise:\n  axial: {kernel: cauchy}\n",
       ":2: noise.axial.kernel: axial kernel 'cauchy': expected gaussian or matern52");
   has("noise:\n  axial: {correlation_px: 21}\n", ":2: noise.axial.correlation_px = 21: must be in [0, 20]");
+  has("noise:\n  axial: {kernel: matern52, correlation_px: 2}\n",
+      "noise.axial.correlation_px = 2: must be 0 or >= 3 with kernel matern52");
   has("occluders:\n  - shape: cone\n", ":2: occluders[0].shape: unknown shape 'cone' (expected box, cylinder, sphere or mesh)");
   has("occluders:\n  - shape: mesh\n    mesh: nowhere/hand.obj\n",
       ":3: occluders[0].mesh: " + (dir / "nowhere/hand.obj").string() + ": mesh file not found");
@@ -226,6 +228,7 @@ TEST_F(BadScene, NoiseBlockReadsBackToTheSameNoise) {
   n.axial.a = 1.0 / 30000;
   n.axial.theta_cap = 0.123456789;
   n.axial.kernel = AxialKernel::matern52;
+  n.axial.correlation_px = 4.5;  // a Matern's range is at least 3 px
   n.edges.enabled = false;
   n.quantize = false;
   const auto p = dir / "noise.yaml";

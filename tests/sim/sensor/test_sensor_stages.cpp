@@ -280,6 +280,15 @@ TEST(SensorNoise, MaternFieldHasItsSigmaAndEachDirectionsCorrelation) {
   NoiseParams gauss = n;
   gauss.axial.kernel = AxialKernel::gaussian;
   EXPECT_NE(plate_depth(gauss, 9, 0, 2), f.first);
+  // Under 3 px the sampled filter no longer gives the covariance (0.1 off at 1 px): refused.
+  NoiseParams short_range = n;
+  short_range.axial.correlation_cols_px = 2;
+  const std::string e = test::error_of<std::invalid_argument>([&] { short_range.validate(); });
+  EXPECT_NE(e.find("noise.axial.correlation_cols_px = 2: must be 0 or >= 3 with kernel matern52"),
+            std::string::npos)
+      << e;
+  gauss.axial.correlation_cols_px = 2;
+  EXPECT_NO_THROW(gauss.validate());
 }
 
 TEST(SensorNoise, RejectsAnInputOfTheWrongSize) {

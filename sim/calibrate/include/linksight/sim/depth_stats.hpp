@@ -193,7 +193,7 @@ inline constexpr FrameHalf kFrameHalves[] = {FrameHalf::all, FrameHalf::even, Fr
     const NoiseParams& noise, std::uint64_t seed, const DepthSurfaceParams& surface = {});
 
 /// What the window estimator of depth_stats reads from the unit-variance axial field of
-/// `axial` (its correlation widths and low-frequency share; the sigma terms do not
+/// `axial` (its kernel, correlation widths and low-frequency share; the sigma terms do not
 /// matter), over full windows: the residual correlation at lags 1..4 pooled over both
 /// directions, and along rows and along columns at lags 1..kCorrelationLags (quadratic
 /// residuals, as depth_stats reads them); the plane-fit and quadratic-fit variances as
@@ -224,6 +224,9 @@ struct NoiseFit {
 /// does, so it is not the default); `matern52` one Matern-5/2 field (AxialKernel) with its
 /// own ranges along rows and columns, fitted to the same readings as `two_term`.
 enum class NoiseStructure { one_field, two_term, matern52 };
+/// Every NoiseStructure, in declaration order (the names' one list: parsing, CLI choices).
+inline constexpr NoiseStructure kNoiseStructures[] = {NoiseStructure::one_field, NoiseStructure::two_term,
+                                                      NoiseStructure::matern52};
 /// "one-field" / "two-term" / "matern52"; parse throws std::invalid_argument naming the
 /// value and choices.
 [[nodiscard]] std::string_view to_string(NoiseStructure structure);
@@ -233,9 +236,11 @@ enum class NoiseStructure { one_field, two_term, matern52 };
 /// - the structure (`two_term`): the two fields' widths and the low field's share whose
 ///   window_response (at stats.window) reads, in least squares, the measured correlation
 ///   along rows and along columns at lags 1..4 and the ratio of the quadratic fit's
-///   variance to the plane fit's (with `shape`'s taken out of it); `one_field`: the one
-///   isotropic width that matches the lag-1 correlation (pooled). With it the plane-fit
-///   sigma is corrected to the noise's own;
+///   variance to the plane fit's (with `shape`'s taken out of it); `matern52`: the one
+///   Matern-5/2 field's ranges (3-20 px) against the same readings; `one_field`: the one
+///   isotropic Gaussian width that matches the lag-1 correlation (pooled). The result's
+///   kernel is the structure's, whatever `start`'s. With it the plane-fit sigma is
+///   corrected to the noise's own;
 /// - axial a, c, k_theta jointly, non-negative, minimizing the largest relative error
 ///   over the depth bins and the angle bins with 10 windows or more (what a comparison
 ///   with the camera sees), each bin's model its median over the bin's windows;

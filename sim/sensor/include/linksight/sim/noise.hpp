@@ -17,9 +17,14 @@ namespace linksight::sim {
 /// - `gaussian`: white noise blurred by a Gaussian of standard deviation w [px];
 ///   neighbours at lag L correlate by exp(-L^2 / (4 w^2)).
 /// - `matern52`: a Matern-5/2 covariance of range r [px],
-///   (1 + sqrt(5) L / r + 5 L^2 / (3 r^2)) exp(-sqrt(5) L / r): smooth like the Gaussian
-///   near 0 but with a longer tail, what the real SR305 frames read (docs/sensor.md).
+///   (1 + sqrt(5) L / r + 5 L^2 / (3 r^2)) exp(-sqrt(5) L / r), r >= 3 px: smooth like the
+///   Gaussian near 0 but with a longer tail, which the window estimators read closer to
+///   the real SR305 frames' row correlations (docs/sensor.md; not the preset).
 enum class AxialKernel { gaussian, matern52 };
+/// The shortest Matern range [px]: from here the sensor's sampled filter gives the
+/// covariance within 0.005 at every lag (at 1 px it is 0.1 off), so what the window model
+/// predicts is what the sensor draws.
+inline constexpr double kMinMaternRangePx = 3.0;
 /// "gaussian" / "matern52"; parse throws std::invalid_argument naming the value and choices.
 [[nodiscard]] std::string_view to_string(AxialKernel kernel);
 [[nodiscard]] AxialKernel parse_axial_kernel(std::string_view name);
@@ -44,7 +49,8 @@ struct AxialNoise {
   /// same as correlation_px (isotropic).
   double correlation_cols_px = 0;
   /// What correlation_px and correlation_cols_px are the widths of: `gaussian` (above, the
-  /// preset's) or `matern52` (their Matern-5/2 ranges; AxialKernel).
+  /// preset's) or `matern52` (their Matern-5/2 ranges, at least 3 px, where the filter
+  /// follows the covariance within 0.005; AxialKernel).
   AxialKernel kernel = AxialKernel::gaussian;
   /// A second, low-frequency term (issue 20): a unit field of its own, blurred by a
   /// Gaussian of low_rows_px along rows and low_cols_px along columns, takes this share of
