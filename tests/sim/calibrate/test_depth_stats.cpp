@@ -576,10 +576,13 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   EXPECT_NEAR(f.sigma(0.6, 0.0), n.axial.a, kFitSigmaRelTol * n.axial.a);
   ASSERT_FALSE(fit.notes.empty());
   EXPECT_EQ(fit.notes[0].rfind("structure: pixel-scale field (matern52)", 0), 0u) << fit.notes[0];
-  // The one-field fit stays the Gaussian's whatever the start's kernel.
+  // The one-field and two-term fits are of Gaussian fields whatever the start's kernel (their
+  // widths would otherwise be read as ranges).
   NoiseParams start = NoiseParams::sr300();
   start.axial.kernel = AxialKernel::matern52;
   EXPECT_EQ(fit_noise(s, start).params.axial.kernel, AxialKernel::gaussian);
+  EXPECT_EQ(fit_noise(s, start, nullptr, NoiseStructure::two_term).params.axial.kernel,
+            AxialKernel::gaussian);
   EXPECT_EQ(parse_noise_structure("matern52"), NoiseStructure::matern52);
   EXPECT_EQ(to_string(NoiseStructure::matern52), "matern52");
   EXPECT_NE(test::error_of<std::invalid_argument>([] { (void)parse_noise_structure("cauchy"); })
