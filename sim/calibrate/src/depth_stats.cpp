@@ -730,13 +730,13 @@ std::pair<double, double> flat_sigmas(const DepthStats& s) {
 // quadratic variance over those at s.window (how the noise grows with the window: what pins
 // the low field's widths, which the correlation in one window hardly sees). `shape`'s
 // sigmas are taken out of the variances in quadrature. The pixel-scale field has ax.kernel's
-// shape (a Matern's ranges 3-20 px, never white); without `with_low`, it alone is fitted
-// (no low field, share 0). The sums are linear in the
+// shape; a Matern (ranges 3-20 px, never white) is fitted alone, without the low field.
+// The sums are linear in the
 // covariance, so each field's are computed once per pair of widths on a grid and every
 // share is a weighted sum of them; a pattern search refines the grid's best. Writes the
 // fitted terms into `ax`; returns the response of the fitted field at s.window.
 WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, AxialNoise& ax,
-                             std::vector<std::string>& notes, bool with_low = true) {
+                             std::vector<std::string>& notes) {
   auto less_shape = [](double x, double shape_x) {
     return std::sqrt(std::max(x * x - shape_x * shape_x, 0.01 * x * x));
   };
@@ -822,7 +822,8 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
   };
   // Widths [px]: the pixel-scale field white or 0.4-4 px (a Matern's ranges 3-20 px, where
   // its filter follows the covariance: AxialNoise); the low one 1.5-20 px.
-  const bool matern = ax.kernel == AxialKernel::matern52;
+  const bool matern = ax.kernel == AxialKernel::matern52, with_low = !matern;
+  const double w_lo = matern ? kMinMaternRangePx : 0.3, w_hi = matern ? 20.0 : 4.0;
   const std::vector<double> fine = matern ? std::vector<double>{kMinMaternRangePx, 3.5, 4.5, 6.0, 8.0, 10.5, 14.0, 20.0}
                                           : std::vector<double>{0.4, 0.6, 0.8, 1.0, 1.25, 1.5, 1.8, 2.2, 2.7, 3.3, 4.0};
   const std::vector<double> coarse = {1.5, 2.0, 2.7, 3.5, 4.5, 6.0, 8.0, 10.5, 14.0, 20.0};
@@ -856,8 +857,8 @@ WindowResponse fit_structure(const DepthStats& s, const DepthStats* shape, Axial
   Eigen::Matrix<double, 5, 1> step;
   step << 0.1, 0.1, 0.025, 0.5, 0.5;
   Eigen::Matrix<double, 5, 1> lo, hi;
-  lo << (matern ? kMinMaternRangePx : 0.3), (matern ? kMinMaternRangePx : 0.3), 0, 0.5, 0.5;
-  hi << (matern ? 20.0 : 4.0), (matern ? 20.0 : 4.0), 0.95, 20, 20;
+  lo << w_lo, w_lo, 0, 0.5, 0.5;
+  hi << w_hi, w_hi, 0.95, 20, 20;
   for (int it = 0; it < 40 && step[2] > 1e-3; ++it) {
     bool moved = false;
     for (int d = 0; d < 5; ++d) {
@@ -977,7 +978,7 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
     variance_factor = fit_structure(s, shape, ax, fit.notes).variance_factor;
   } else if (structure == NoiseStructure::matern52) {
     ax.kernel = AxialKernel::matern52;
-    variance_factor = fit_structure(s, shape, ax, fit.notes, false).variance_factor;
+    variance_factor = fit_structure(s, shape, ax, fit.notes).variance_factor;
   } else if (rho1 > window_response(0.3, window).correlation[0]) {
     // Above about 4 px the reading saturates (near 0.9): a width there is not determined.
     double lo = 0.3, hi = 4.0;

@@ -23,15 +23,14 @@ using detail::pixel_key;
 using detail::inverse_normal_cdf;
 using detail::uniform;
 
-// A normalized Gaussian of standard deviation s [px], cut at 3 s, with sum k^2 = 1: one
-// 1-D pass keeps unit white noise at unit variance (at the image border the kernel is cut
-// and the variance a little lower).
-std::vector<float> unit_variance_gaussian(double s) {
-  const int R = static_cast<int>(std::ceil(3 * s));
+// The taps f(i), i = -R..R, scaled to sum k^2 = 1: one 1-D pass keeps unit white noise at
+// unit variance (at the image border the kernel is cut and the variance a little lower).
+template <class F>
+std::vector<float> unit_variance_taps(int R, F f) {
   std::vector<double> g(static_cast<std::size_t>(2 * R + 1));
   double sum2 = 0;
   for (int i = -R; i <= R; ++i) {
-    g[static_cast<std::size_t>(i + R)] = std::exp(-0.5 * i * i / (s * s));
+    g[static_cast<std::size_t>(i + R)] = f(i);
     sum2 += g[static_cast<std::size_t>(i + R)] * g[static_cast<std::size_t>(i + R)];
   }
   std::vector<float> k(g.size());
@@ -39,25 +38,23 @@ std::vector<float> unit_variance_gaussian(double s) {
   return k;
 }
 
+// A Gaussian of standard deviation s [px], cut at 3 s.
+std::vector<float> unit_variance_gaussian(double s) {
+  return unit_variance_taps(static_cast<int>(std::ceil(3 * s)),
+                            [s](int i) { return std::exp(-0.5 * i * i / (s * s)); });
+}
+
 // The Matern-5/2 field's 1-D filter for range r [px]: the filter whose autocorrelation is
 // the covariance's, i.e. the square root of its spectrum (a + w^2)^-3 (a = 5 / r^2), which
 // is the Matern-1 function x K_1(x), x = sqrt(5) |i| / r (1 at i = 0); cut at 3 r, where
 // it has fallen below 1e-2 and its autocorrelation is within 0.005 of the Matern's at every
-// lag (r >= 3 px), and normalized to sum k^2 = 1 as the Gaussian's.
+// lag (r >= 3 px).
 std::vector<float> unit_variance_matern52(double r) {
-  const int R = static_cast<int>(std::ceil(3 * r));
   const double alpha = std::sqrt(5.0) / r;
-  std::vector<double> g(static_cast<std::size_t>(2 * R + 1));
-  double sum2 = 0;
-  for (int i = -R; i <= R; ++i) {
+  return unit_variance_taps(static_cast<int>(std::ceil(3 * r)), [alpha](int i) {
     const double x = alpha * std::abs(i);
-    const double v = i == 0 ? 1.0 : x * std::cyl_bessel_k(1.0, x);
-    g[static_cast<std::size_t>(i + R)] = v;
-    sum2 += v * v;
-  }
-  std::vector<float> k(g.size());
-  for (std::size_t i = 0; i < g.size(); ++i) k[i] = static_cast<float>(g[i] / std::sqrt(sum2));
-  return k;
+    return i == 0 ? 1.0 : x * std::cyl_bessel_k(1.0, x);
+  });
 }
 
 // The separable blur of a w x h row-major field, one pass each way. Every output sums

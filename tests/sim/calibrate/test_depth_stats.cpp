@@ -455,12 +455,12 @@ TEST(DepthStats, WindowResponseOfCorrelatedNoise) {
   EXPECT_THROW((void)window_response(1.0, 3), std::invalid_argument);
 }
 
-// An axial field alone (sigma a, quantized as the camera's) on a fronto-parallel wall at
+// An axial field alone (sigma 1 mm, quantized as the camera's) on a fronto-parallel wall at
 // 0.6 m filling the default camera's image, 6 frames, read by depth_stats; `n` gets the
 // rest of the setting.
-DepthStats wall_field_stats(NoiseParams& n, double a = 0.001) {
+DepthStats wall_field_stats(NoiseParams& n) {
   n.axial.enabled = true;
-  n.axial.a = a;
+  n.axial.a = 0.001;
   n.axial.c = 0;
   n.axial.k_theta = 0;
   n.quantize = true;  // 0.125 mm steps under 1 mm noise, as the camera's
@@ -477,9 +477,10 @@ DepthStats wall_field_stats(NoiseParams& n, double a = 0.001) {
   return depth_stats(frames, camera.intrinsics);
 }
 
-// `s` reads along rows and along columns at every lag what `r` predicts, within `tol`.
-void expect_reads_as(const DepthStats& s, const WindowResponse& r, double tol) {
-  for (int l = 0; l < kCorrelationLags; ++l) {
+// `s` reads along rows and along columns at lags 1..lags what `r` predicts, within `tol`.
+void expect_reads_as(const DepthStats& s, const WindowResponse& r, double tol,
+                     int lags = kCorrelationLags) {
+  for (int l = 0; l < lags; ++l) {
     EXPECT_NEAR(s.correlation_rows[l], r.correlation_rows[l], tol) << "rows, lag " << l + 1;
     EXPECT_NEAR(s.correlation_cols[l], r.correlation_cols[l], tol) << "columns, lag " << l + 1;
   }
@@ -528,10 +529,7 @@ TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
   const NoiseFit fit = fit_noise(s, NoiseParams::sr300(), nullptr, NoiseStructure::two_term);
   const AxialNoise& f = fit.params.axial;
   const WindowResponse fr = window_response(f, s.window);
-  for (int l = 0; l < 4; ++l) {
-    EXPECT_NEAR(fr.correlation_rows[l], s.correlation_rows[l], kFitRhoTol) << "rows, lag " << l + 1;
-    EXPECT_NEAR(fr.correlation_cols[l], s.correlation_cols[l], kFitRhoTol) << "columns, lag " << l + 1;
-  }
+  expect_reads_as(s, fr, kFitRhoTol, 4);
   EXPECT_NEAR(fr.quad_variance_factor / fr.variance_factor,
               r.quad_variance_factor / r.variance_factor, kFitRatioTol);
   EXPECT_GT(f.cols_px(), f.rows_px());
@@ -565,10 +563,7 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   EXPECT_EQ(f.kernel, AxialKernel::matern52);
   EXPECT_EQ(f.low_share, 0.0);
   const WindowResponse fr = window_response(f, s.window);
-  for (int l = 0; l < 4; ++l) {
-    EXPECT_NEAR(fr.correlation_rows[l], s.correlation_rows[l], kFitRhoTol) << "rows, lag " << l + 1;
-    EXPECT_NEAR(fr.correlation_cols[l], s.correlation_cols[l], kFitRhoTol) << "columns, lag " << l + 1;
-  }
+  expect_reads_as(s, fr, kFitRhoTol, 4);
   // One field's two ranges are pinned by these readings, unlike the two-term fit's five
   // parameters: they come back.
   EXPECT_NEAR(f.rows_px(), 4.0, kFitRangeRelTol * 4.0);
