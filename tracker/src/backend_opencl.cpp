@@ -449,8 +449,8 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
     for (const std::vector<Eigen::Vector3d>* t : {&f.t1, &f.t2})
       for (int a = 0; a < 3; ++a)
         for (const Eigen::Vector3d& v : *t) fr.push_back(v[a]);
-    const cl_double geo[6] = {g.ball_radius, g.neck_radius, g.neck_length,
-                              detail::chain_search_reach(g), params.huber, params.max_distance};
+    const cl_double geo[5] = {g.ball_radius, g.neck_radius, g.neck_length, params.huber,
+                              params.max_distance};
     std::size_t cap_fr = chain_fr_bytes_, cap_geo = 64;
     grow(chain_fr_, fr.size() * sizeof(cl_double), cap_fr);
     chain_fr_bytes_ = std::max(chain_fr_bytes_, fr.size() * sizeof(cl_double));
@@ -514,7 +514,8 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
   void build_chain_kernels(std::size_t limit) {
     cl_int err = CL_SUCCESS;
     chain_program_ = build(context_.get(), device_, detail::kChainKernelSource, info_.name,
-                           "-cl-std=CL1.2 -DVALS=" + std::to_string(detail::kChainValues));
+                           "-cl-std=CL1.2 -cl-fp32-correctly-rounded-divide-sqrt -DVALS=" +
+                               std::to_string(detail::kChainValues));
     std::size_t chain_limit = limit;
     for (auto [kernel, name] :
          {std::pair{&k_chain_point_, "chain_point"}, std::pair{&k_chain_sums_, "chain_sums"}}) {

@@ -36,6 +36,21 @@ Frames frames_of(const ChainState& chain, const ComponentGeometry& g) {
     f.ay.push_back(a.y());
     f.az.push_back(a.z());
   }
+  // The search's float copies: rounded to nearest, as the device converts its doubles.
+  detail::ChainSearchFrames& sf = f.search;
+  const auto to_f = [](const std::vector<double>& v) {
+    return std::vector<float>(v.begin(), v.end());
+  };
+  sf.cx = to_f(f.cx);
+  sf.cy = to_f(f.cy);
+  sf.cz = to_f(f.cz);
+  sf.ax = to_f(f.ax);
+  sf.ay = to_f(f.ay);
+  sf.az = to_f(f.az);
+  sf.r = static_cast<float>(g.ball_radius);
+  sf.rn = static_cast<float>(g.neck_radius);
+  sf.L = static_cast<float>(g.neck_length);
+  sf.reach = static_cast<float>(detail::chain_search_reach(g));
   return f;
 }
 
@@ -89,63 +104,22 @@ Hit hit_of(const Eigen::Vector3d& p, const Frames& f, std::size_t k, const Candi
   return h;
 }
 
-// The nearest component's index (-1: none) and its candidate. `d2`: scratch of count
-// entries.
-struct Nearest {
-  int k = -1;
-  Candidate c{};
-};
-Nearest nearest_candidate(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g,
-                          double* d2) {
-  const std::size_t count = f.cx.size();
-  if (count == 0) return {};
-  // Squared distances to every centre (a loop the compiler vectorizes); the nearest
-  // centre's component is tried first.
-  const double px = p.x(), py = p.y(), pz = p.z();
-  const double* cx = f.cx.data();
-  const double* cy = f.cy.data();
-  const double* cz = f.cz.data();
-  for (std::size_t k = 0; k < count; ++k) {
-    const double dx = px - cx[k], dy = py - cy[k], dz = pz - cz[k];
-    d2[k] = dx * dx + dy * dy + dz * dz;
-  }
-  std::size_t m = 0;
-  for (std::size_t k = 1; k < count; ++k)
-    if (d2[k] < d2[m]) m = k;
-  const auto try_k = [&](std::size_t k) {
-    return candidate(px - cx[k], py - cy[k], pz - cz[k], d2[k], f.ax[k], f.ay[k], f.az[k], g);
-  };
-  Candidate best = try_k(m);
-  std::size_t bk = m;
-  // Component k's surface lies within `reach` of its centre, so a point at |p - c_k| is at
-  // least |p - c_k| - reach from it: components that cannot beat the best are skipped
-  // (best + reach >= 0, as best >= -ball_radius). Ties go to the lower index.
-  const double reach = detail::chain_search_reach(g);
-  for (std::size_t k = 0; k < count; ++k) {
-    if (k == m) continue;
-    const double bound = best.distance + reach;
-    if (d2[k] >= bound * bound) continue;
-    const Candidate c = try_k(k);
-    if (c.distance < best.distance || (c.distance == best.distance && k < bk)) {
-      best = c;
-      bk = k;
-    }
-  }
-  return {static_cast<int>(bk), best};
-}
-
-Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g, double* d2) {
-  const Nearest n = nearest_candidate(p, f, g, d2);
-  if (n.k < 0) return {};
-  return hit_of(p, f, static_cast<std::size_t>(n.k), n.c);
-}
-
 // Component k's distance to p with the normal there.
 Hit hit_on(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g,
            std::size_t k) {
   const double dx = p.x() - f.cx[k], dy = p.y() - f.cy[k], dz = p.z() - f.cz[k];
   return hit_of(p, f, k,
                 candidate(dx, dy, dz, dx * dx + dy * dy + dz * dz, f.ax[k], f.ay[k], f.az[k], g));
+}
+
+// The nearest component (chain_search.hpp's float search) and its hit in double.
+Hit nearest(const Eigen::Vector3d& p, const Frames& f, const ComponentGeometry& g) {
+  if (f.cx.empty()) return {};
+  const float x = static_cast<float>(p.x()), y = static_cast<float>(p.y()),
+              z = static_cast<float>(p.z());
+  std::int16_t k = 0;
+  detail::chain_search_range(&x, &y, &z, 0, 1, 1, f.search, &k);
+  return hit_on(p, f, g, static_cast<std::size_t>(k));
 }
 
 double huber(double r, double h) {
@@ -166,28 +140,38 @@ struct Association {
 void accumulate(const PointsView& pts, std::size_t begin, std::size_t end, std::size_t stride,
                 const Frames& f, const ComponentGeometry& g, const ChainFitParams& params,
                 Association a, Sums& s) {
-  std::vector<double> d2(f.cx.size());
+  if (f.cx.empty() || begin >= end) return;
+  // The block's association first (the float search, chain_search.hpp), then each point's
+  // residual and Jacobian in double on its component, as a reusing pass computes them.
+  std::vector<std::int16_t> local;
+  const std::int16_t* assoc = a.assoc != nullptr ? a.assoc + begin : nullptr;
+  if (!a.reuse) {
+    std::int16_t* out = a.assoc != nullptr ? a.assoc + begin : nullptr;
+    if (out == nullptr) {
+      local.resize(end - begin);
+      out = local.data();
+    }
+    detail::chain_search_range(pts.x.data() + begin, pts.y.data() + begin, pts.z.data() + begin,
+                               0, end - begin, stride, f.search, out);
+    assoc = out;
+  }
   for (std::size_t i = begin; i < end; i += stride) {
     const Eigen::Vector3d p(pts.x[i], pts.y[i], pts.z[i]);
+    const auto k = static_cast<std::size_t>(assoc[i - begin]);
     if (a.cost_only) {  // the robust cost as below, from the distance alone
-      const Nearest n = nearest_candidate(p, f, g, d2.data());
-      const double r = n.k >= 0 ? n.c.distance : std::numeric_limits<double>::infinity();
+      const double dx = p.x() - f.cx[k], dy = p.y() - f.cy[k], dz = p.z() - f.cz[k];
+      const double r = candidate(dx, dy, dz, dx * dx + dy * dy + dz * dz, f.ax[k], f.ay[k],
+                                 f.az[k], g)
+                           .distance;
       s.robust += huber(std::min(std::abs(r), params.max_distance), params.huber);
       continue;
     }
-    Hit hit;
-    if (a.reuse) {
-      hit = hit_on(p, f, g, static_cast<std::size_t>(a.assoc[i]));
-    } else {
-      hit = nearest(p, f, g, d2.data());
-      if (a.assoc != nullptr) a.assoc[i] = static_cast<std::int16_t>(hit.k);
-    }
+    const Hit hit = hit_on(p, f, g, k);
     const double r = hit.part.distance;
     // Points beyond max_distance count as if there, so that a step that pushes points
     // out does not look cheaper.
     s.robust += huber(std::min(std::abs(r), params.max_distance), params.huber);
-    if (hit.k < 0 || std::abs(r) > params.max_distance) continue;
-    const auto k = static_cast<std::size_t>(hit.k);
+    if (std::abs(r) > params.max_distance) continue;
     ++s.inliers;
     ++s.count[k];
     s.sum2 += r * r;
@@ -228,8 +212,13 @@ Sums pass(const PointsView& pts, const Frames& f, const ChainState& chain,
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
   for (std::ptrdiff_t blk = 0; blk < n_blocks; ++blk) {
     const auto b = static_cast<std::size_t>(blk);
+    // Summed in a Sums of the thread's own, not in partial[b] itself: neighbouring blocks'
+    // scalar sums share a cache line there, which two threads adding to every point would
+    // pass back and forth.
+    Sums s(components);
     accumulate(pts, b * kBlock, std::min(pts.size(), (b + 1) * kBlock), stride, f, g, params,
-               a, partial[b]);
+               a, s);
+    partial[b] = std::move(s);
   }
   for (const Sums& s : partial) total.add(s);
   return total;
@@ -451,8 +440,7 @@ double anchor_cost(const ChainState& chain, const ChainAnchor& anchor, const Com
 
 SurfaceHit nearest_surface(const Eigen::Vector3d& p, const ChainState& chain,
                            const ComponentGeometry& geometry) {
-  std::vector<double> d2(chain.axis.size());
-  const Hit h = nearest(p, frames_of(chain, geometry), geometry, d2.data());
+  const Hit h = nearest(p, frames_of(chain, geometry), geometry);
   return {h.k, h.part.distance};
 }
 

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "chain_search.hpp"
 #include "linksight/tracker/chain_fit.hpp"
 
 namespace linksight {
@@ -20,9 +21,9 @@ namespace detail {
 // on a device that sums the same blocks the same way.
 inline constexpr std::size_t kChainBlock = 2048;
 
-// Component k's surface lies within this of its centre: the search skips a component
-// whose centre is farther than the best distance found plus this. One value for the CPU's
-// search and the device's, which must agree bit for bit.
+// Component k's surface lies within this of its centre: the CPU's search skips a component
+// whose centre is farther than the nearest centre's ball distance plus this (and a margin,
+// chain_search.hpp).
 inline double chain_search_reach(const ComponentGeometry& g) {
   return std::max(g.ball_radius, g.neck_length + g.neck_radius);
 }
@@ -37,6 +38,7 @@ struct ChainFrames {
   Nodes centre;                           // count + 1 (the last is the tip node)
   std::vector<Eigen::Vector3d> t1, t2;    // tangents of axis k, a rotation's directions
   std::vector<double> cx, cy, cz, ax, ay, az;  // count each
+  ChainSearchFrames search;               // the same in float, for the search
 };
 
 // A point's residual depends on its own component only, through u = [dc_k; dtheta_k]: the

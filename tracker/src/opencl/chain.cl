@@ -2,9 +2,12 @@
 // reference): kernel chain_point finds each point's component surface (or reuses the
 // recorded one) and its residual, weight and Jacobian row; kernel chain_sums sums them in
 // the CPU's blocks, each block in point order, one work item per block and component.
-// Double precision, the CPU's operations in the CPU's order and no contraction, so every
-// value, association and sum is the CPU's bits (OpenCL's double sqrt and division are
-// correctly rounded, as IEEE 754 asks of the CPU's).
+// The search in float (chain_search.hpp: every component's float distance, the argmin,
+// ties to the lower index; the CPU skips components that cannot win, which gives the same
+// answer), the rest in double: the CPU's operations in the CPU's order and no contraction,
+// so every value, association and sum is the CPU's bits (OpenCL's double sqrt and division
+// are correctly rounded, and its float sqrt under -cl-fp32-correctly-rounded-divide-sqrt,
+// which the build passes, as IEEE 754 asks of the CPU's).
 #pragma OPENCL FP_CONTRACT OFF
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
@@ -55,11 +58,20 @@ Candidate candidate(const double dx, const double dy, const double dz, const dou
   return out;
 }
 
-// Squared distance from p to centre k, as the CPU's search computes it.
-inline double centre_d2(global const double* fr, const int count, const int k, const double px,
-                        const double py, const double pz) {
-  const double dx = px - CX(k), dy = py - CY(k), dz = pz - CZ(k);
-  return dx * dx + dy * dy + dz * dz;
+// Component k's float distance to p, as chain_search.hpp's distance() computes each lane:
+// the centre and axis rounded to float, the nearer of ball and neck.
+inline float distance_f(global const double* fr, const int count, const int k, const float px,
+                        const float py, const float pz, const float r, const float rn,
+                        const float L) {
+  const float dx = px - (float)CX(k), dy = py - (float)CY(k), dz = pz - (float)CZ(k);
+  const float ax = (float)AX(k), ay = (float)AY(k), az = (float)AZ(k);
+  const float ball = sqrt(dx * dx + dy * dy + dz * dz) - r;
+  const float t = dx * ax + dy * ay + dz * az;
+  const float lo = t < 0.0f ? 0.0f : t;
+  const float s = L < lo ? L : lo;  // std::clamp(t, 0, L)
+  const float ex = dx - s * ax, ey = dy - s * ay, ez = dz - s * az;
+  const float neck = sqrt(ex * ex + ey * ey + ez * ez) - rn;
+  return neck < ball ? neck : ball;
 }
 
 inline Candidate try_k(global const double* fr, const int count, const int k, const double px,
@@ -90,7 +102,7 @@ inline double huber(const double v, const double h) {
   return a <= h ? 0.5 * v * v : h * (a - 0.5 * h);
 }
 
-// geo: ball radius, neck radius, neck length, search reach, Huber threshold, max distance.
+// geo: ball radius, neck radius, neck length, Huber threshold, max distance.
 kernel void chain_point(global const float* x, global const float* y, global const float* z,
                         const uint n, global const double* fr, const int count,
                         global const double* geo, const int search,
@@ -106,40 +118,26 @@ kernel void chain_point(global const float* x, global const float* y, global con
     comp[i] = -1;
     return;
   }
-  const double r = geo[0], rn = geo[1], L = geo[2], reach = geo[3], h = geo[4],
-               maxd = geo[5];
+  const double r = geo[0], rn = geo[1], L = geo[2], h = geo[3], maxd = geo[4];
   const double px = (double)x[i], py = (double)y[i], pz = (double)z[i];
   int bk = -1;
   Candidate best;
   if (search) {
-    // Nearest centre first, then every component that could be nearer (ties: the lower
-    // index), as the CPU's nearest().
-    int m = 0;
-    double dm = centre_d2(fr, count, 0, px, py, pz);
-    for (int k = 1; k < count; ++k) {
-      const double d = centre_d2(fr, count, k, px, py, pz);
-      if (d < dm) {
-        dm = d;
-        m = k;
-      }
-    }
-    best = try_k(fr, count, m, px, py, pz, r, rn, L);
-    bk = m;
+    const float rf = (float)r, rnf = (float)rn, Lf = (float)L;
+    float bestf = INFINITY;
+    bk = 0;
     for (int k = 0; k < count; ++k) {
-      if (k == m) continue;
-      const double bound = best.distance + reach;
-      if (centre_d2(fr, count, k, px, py, pz) >= bound * bound) continue;
-      const Candidate c = try_k(fr, count, k, px, py, pz, r, rn, L);
-      if (c.distance < best.distance || (c.distance == best.distance && k < bk)) {
-        best = c;
+      const float d = distance_f(fr, count, k, x[i], y[i], z[i], rf, rnf, Lf);
+      if (d < bestf) {
+        bestf = d;
         bk = k;
       }
     }
     assoc_out[i] = (short)bk;
   } else {
     bk = assoc_in[i];
-    best = try_k(fr, count, bk, px, py, pz, r, rn, L);
   }
+  best = try_k(fr, count, bk, px, py, pz, r, rn, L);
   const double res = best.distance;
   global double* v = val + VALS * i;
   v[0] = huber(fmin(fabs(res), maxd), h);
