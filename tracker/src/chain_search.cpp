@@ -28,7 +28,7 @@ struct Lanes<8> {
 
 // Select by mask arithmetic: GCC scalarizes the vector ?: without SSE4.1.
 template <class F, class I>
-[[gnu::always_inline]] inline F select(I mask, F a, F b) {
+[[gnu::always_inline]] inline F select(const I& mask, const F& a, const F& b) {
   return (F)(((I)a & mask) | ((I)b & ~mask));
 }
 
@@ -36,14 +36,14 @@ template <class F, class I>
 // -cl-fp32-correctly-rounded-divide-sqrt. With -fno-math-errno (the tracker's build) GCC
 // turns the lanes into one sqrtps / vsqrtps.
 template <int W, class F>
-[[gnu::always_inline]] inline F vsqrt(F v) {
+[[gnu::always_inline]] inline F vsqrt(const F& v) {
   F r;
   for (int l = 0; l < W; ++l) r[l] = __builtin_sqrtf(v[l]);
   return r;
 }
 
 template <int W, class I>
-[[gnu::always_inline]] inline bool any(I m) {
+[[gnu::always_inline]] inline bool any(const I& m) {
   std::uint64_t w[W / 2];
   std::memcpy(w, &m, sizeof m);
   std::uint64_t o = 0;
@@ -52,8 +52,8 @@ template <int W, class I>
 }
 
 template <class F>
-[[gnu::always_inline]] inline F centre_d2(F px, F py, F pz, const ChainSearchFrames& f,
-                                          std::size_t k) {
+[[gnu::always_inline]] inline F centre_d2(const F& px, const F& py, const F& pz,
+                                          const ChainSearchFrames& f, std::size_t k) {
   const F dx = px - f.cx[k], dy = py - f.cy[k], dz = pz - f.cz[k];
   return dx * dx + dy * dy + dz * dz;
 }
@@ -61,8 +61,8 @@ template <class F>
 // Component k's float distance to W points: the nearer of ball and neck, in chain.cl's
 // distance_f's operations and order.
 template <int W, class F>
-[[gnu::always_inline]] inline F distance(F px, F py, F pz, const ChainSearchFrames& f,
-                                         std::size_t k) {
+[[gnu::always_inline]] inline F distance(const F& px, const F& py, const F& pz,
+                                         const ChainSearchFrames& f, std::size_t k) {
   using I = typename Lanes<W>::I;
   const F dx = px - f.cx[k], dy = py - f.cy[k], dz = pz - f.cz[k];
   const F ball = vsqrt<W>(dx * dx + dy * dy + dz * dz) - f.r;
