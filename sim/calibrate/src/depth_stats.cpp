@@ -1167,6 +1167,20 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
                   s.flying > 0 ? "p_drop is 1" : "no flying pixel");
   }
   fit.notes.emplace_back(line);
+  // The camera's rule for steps: on where the recording reports under one pair of valid
+  // 4-neighbours more than the jump apart per million, over enough pairs to tell (the SR305
+  // frames: none in 1.27 million).
+  constexpr long kMinStepPairs = 100000;
+  if (s.neighbour_pairs >= kMinStepPairs) {
+    e.drop_steps = s.neighbour_jumps * 1000000 < s.neighbour_pairs;
+    std::snprintf(line, sizeof line,
+                  "edges.drop_steps %s: %ld of %ld valid neighbour pairs step more than the "
+                  "statistics' neighbour_jump",
+                  e.drop_steps ? "on" : "off", s.neighbour_jumps, s.neighbour_pairs);
+    fit.notes.emplace_back(line);
+  } else {
+    fit.notes.emplace_back("edges.drop_steps kept: under 100000 valid neighbour pairs");
+  }
   fit.notes.emplace_back("lateral.sigma_px and dropouts.max_incidence, min_signal kept: not "
                          "measured");
   return fit;

@@ -310,6 +310,32 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       depth_m[pix] = static_cast<float>(noise.quantize ? q * unit : z);
     }
   }
+  if (noise.edges.enabled && noise.edges.drop_steps) {
+    // What the pass above reported, read whole before anything is dropped, so a pixel's fate
+    // does not depend on the order (or the thread) in which its neighbours are visited. The
+    // reported depths are the PNG's units: the camera's own rule sees nothing finer.
+    steps_ = depth.data;
+    const double jump = noise.edges.jump;
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int v = noisy.v0; v <= noisy.v1; ++v) {
+      for (int u = noisy.u0; u <= noisy.u1; ++u) {
+        const std::size_t pix = static_cast<std::size_t>(v) * W + u;
+        const int a = steps_[pix];
+        if (a == 0) continue;
+        const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
+        for (int k = 0; k < 4; ++k) {
+          const int uu = u + du[k], vv = v + dv[k];
+          if (uu < 0 || uu >= W || vv < 0 || vv >= H) continue;
+          const int b = steps_[static_cast<std::size_t>(vv) * W + uu];
+          if (b != 0 && (a - b) * unit > jump) {  // a valid neighbour this much nearer
+            depth.data[pix] = 0;
+            depth_m[pix] = 0.0F;
+            break;
+          }
+        }
+      }
+    }
+  }
 }
 
 }  // namespace linksight::sim

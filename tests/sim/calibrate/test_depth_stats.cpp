@@ -165,6 +165,42 @@ std::vector<io::DepthImage> real_frames(io::Intrinsics& K) {
   return frames;
 }
 
+// edges.drop_steps from the recording: on where it reports under one pair of valid
+// neighbours more than the jump apart per million (the SR305 frames: none in 1.27 million),
+// off above that, kept as started under 100000 pairs; a note says which and why.
+TEST(DepthStats, TheFitDropsStepsWhereTheCameraReportsNone) {
+  io::Intrinsics K;
+  DepthStats s = depth_stats(real_frames(K), K);
+  ASSERT_GE(s.neighbour_pairs, 1000000);
+  EXPECT_EQ(s.neighbour_jumps, 0);
+  const auto fitted = [&](const NoiseParams& start) {
+    const NoiseFit fit = fit_noise(s, start);
+    std::string note;
+    for (const std::string& n : fit.notes)
+      if (n.rfind("edges.drop_steps", 0) == 0) note = n;
+    return std::pair{fit.params.edges.drop_steps, note};
+  };
+  const auto [on, on_note] = fitted(NoiseParams::sr300());
+  EXPECT_TRUE(on);
+  EXPECT_EQ(on_note, "edges.drop_steps on: 0 of " + std::to_string(s.neighbour_pairs) +
+                         " valid neighbour pairs step more than the statistics' neighbour_jump");
+  s.neighbour_jumps = s.neighbour_pairs / 1000000 + 1;  // just over one per million
+  const auto [off, off_note] = fitted(NoiseParams::sr300());
+  EXPECT_FALSE(off);
+  EXPECT_EQ(off_note.rfind("edges.drop_steps off: ", 0), 0u) << off_note;
+  s.neighbour_jumps = s.neighbour_pairs / 1000000;  // just under
+  EXPECT_TRUE(fitted(NoiseParams::sr300()).first);
+  s.neighbour_pairs = 99999;
+  s.neighbour_jumps = 0;
+  NoiseParams start = NoiseParams::sr300();
+  for (const bool kept : {false, true}) {
+    start.edges.drop_steps = kept;
+    const auto [value, note] = fitted(start);
+    EXPECT_EQ(value, kept);
+    EXPECT_EQ(note, "edges.drop_steps kept: under 100000 valid neighbour pairs");
+  }
+}
+
 // The figures measured on SR305 frames of this kind, independently of this code (issue 8),
 // with the tolerance of that measurement: sigma to 25%, rates and the baseline to its
 // stated spread.

@@ -346,6 +346,69 @@ TEST(Sensor, EdgeModelBandsAndFlyingPixels) {
   EXPECT_NEAR(double(flying) / kept, 0.5, 0.07);
 }
 
+// edges.drop_steps: the camera never reports two 4-neighbours more than the jump apart
+// (docs/sensor.md), so the farther of such a pair is dropped, from the reported image as it
+// was before any drop, and nothing else changes; the same for any thread count.
+TEST(Sensor, DropStepsLeavesNoReportedNeighboursAJumpApart) {
+  NoiseParams noise = NoiseParams::off();
+  noise.edges.enabled = true;
+  noise.edges.band_p1 = 0.3;  // many far pixels kept next to the near surface
+  noise.edges.p_drop = 0.3;
+  noise.edges.p_flying = 0.5;
+  BackgroundObject plate;
+  plate.shape.half_extents = Eigen::Vector3d(0.1, 0.1, 0.002);
+  plate.X_WO.translation() = Eigen::Vector3d(0.0, 0.0, 0.502);
+  std::vector<Eigen::Isometry3d> away(1, Eigen::Isometry3d::Identity());
+  away[0].translation() = Eigen::Vector3d(0, 0, -5);
+  const auto render = [&](bool drop, int threads) {
+    NoiseParams n = noise;
+    n.edges.drop_steps = drop;
+    SensorParams p = frontal(n);
+    p.threads = threads;
+    Sensor sensor(p, one_component(), {}, {plate, wall_at(0.8)});
+    return sensor.render(away, 0.0, 3, 2);  // seed 3, frame 2
+  };
+  const DepthFrame before = render(false, 1), after = render(true, 1), after3 = render(true, 3);
+  EXPECT_EQ(after.depth.data, after3.depth.data);
+  EXPECT_EQ(after.depth_m, after3.depth_m);
+  const int W = before.width, H = before.height;
+  const double unit = frontal(noise).camera.intrinsics.depth_scale;
+  // Reported neighbours more than the jump apart, and whether each pixel has a nearer one.
+  const auto steps = [&](const std::vector<std::uint16_t>& d, std::vector<bool>* farther) {
+    long pairs = 0;
+    for (int v = 0; v < H; ++v)
+      for (int u = 0; u < W; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v) * W + u;
+        if (d[i] == 0) continue;
+        const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
+        for (int k = 0; k < 4; ++k) {
+          const int uu = u + du[k], vv = v + dv[k];
+          if (uu < 0 || uu >= W || vv < 0 || vv >= H) continue;
+          const int b = d[static_cast<std::size_t>(vv) * W + uu];
+          if (b == 0 || (d[i] - b) * unit <= noise.edges.jump) continue;
+          ++pairs;
+          if (farther != nullptr) (*farther)[i] = true;
+        }
+      }
+    return pairs;
+  };
+  std::vector<bool> farther(before.depth.data.size(), false);
+  ASSERT_GT(steps(before.depth.data, &farther), 100) << "the case must have such pairs";
+  EXPECT_EQ(steps(after.depth.data, nullptr), 0);
+  long dropped = 0;
+  for (std::size_t i = 0; i < farther.size(); ++i) {
+    if (farther[i]) {
+      EXPECT_EQ(after.depth.data[i], 0) << "pixel " << i;
+      EXPECT_EQ(after.depth_m[i], 0.0F) << "pixel " << i;
+      ++dropped;
+    } else {
+      EXPECT_EQ(after.depth.data[i], before.depth.data[i]) << "pixel " << i;
+      EXPECT_EQ(after.depth_m[i], before.depth_m[i]) << "pixel " << i;
+    }
+  }
+  EXPECT_GT(dropped, 100);
+}
+
 class SensorThreads : public ::testing::TestWithParam<double> {};
 
 // White and correlated axial noise (the blurred field is built in parallel too).

@@ -154,6 +154,8 @@ struct Dropouts {
 /// pixel that sees nothing) the edge pixel is dropped with p_drop, else it becomes a
 /// flying pixel with p_flying: z_near + u (z_far - z_near), u uniform in
 /// [flying_position - flying_spread, flying_position + flying_spread] within [0, 1].
+/// With drop_steps, last, a reported pixel with a reported 4-neighbour more than `jump`
+/// nearer is dropped: the camera never reports two such neighbours (docs/sensor.md).
 struct EdgeEffects {
   bool enabled = true;
   double jump = 0.02;              ///< [m]
@@ -163,6 +165,7 @@ struct EdgeEffects {
   double p_flying = 0.10;          ///< (fitted, given p_drop)
   double flying_position = 0.42;   ///< mean of u (fitted)
   double flying_spread = 0.46;     ///< half-width of u's range (fitted)
+  bool drop_steps = false;         ///< no two reported neighbours more than `jump` apart
   template <class Archive>
   void fields(Archive& ar) {
     ar("enabled", enabled);
@@ -173,6 +176,7 @@ struct EdgeEffects {
     ar("p_flying", p_flying, fields::in(0, 1));
     ar("flying_position", flying_position, fields::in(0, 1));
     ar("flying_spread", flying_spread, fields::in(0, 1));
+    ar("drop_steps", drop_steps);
   }
 };
 

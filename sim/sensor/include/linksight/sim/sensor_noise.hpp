@@ -56,6 +56,7 @@ class SensorNoise {
   std::vector<float> rows_kernel_, cols_kernel_, low_rows_kernel_, low_cols_kernel_;
   std::vector<float> white_, blurred_, field_;  // their per-frame buffers
   std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
+  std::vector<std::uint16_t> steps_;          // the reported depth, for edges.drop_steps
   std::vector<int> blob_;                     // the hole being grown
   std::vector<std::uint32_t> blob_stamp_;     // per pixel: the id of the last blob it joined
   std::uint32_t blob_id_ = 0;
