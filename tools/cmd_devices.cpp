@@ -33,7 +33,10 @@ int run_devices() {
               << "    max work group: " << d.max_work_group_size << "\n"
               << "    cl_khr_int64_base_atomics: "
               << (d.int64_atomics ? "yes" : "NO (opencl back end unusable)") << "\n"
-              << "    cl_khr_fp64:    " << (d.fp64 ? "yes" : "no") << " (not needed)\n";
+              << "    cl_khr_fp64:    " << (d.fp64 ? "yes" : "no")
+              << " (with the next: chain-fit's passes on the device, else on the host)\n"
+              << "    correctly rounded float sqrt: " << (d.fp32_rounded_sqrt ? "yes" : "no")
+              << "\n";
   }
   std::cout << "--backend auto picks: " << to_string(auto_backend()) << "\n";
   return kExitOk;

@@ -1,6 +1,6 @@
-// chain_search.hpp: chain-fit's float search, eight points at a time, skipping components
-// that cannot win, against the definition the device computes (every component's float
-// distance, the argmin, ties to the lower index).
+// chain_search.hpp: chain-fit's float search, two vectors of points at a time, skipping
+// components that cannot win, against the definition the device computes (every component's
+// float distance, the argmin, ties to the lower index).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,6 +9,7 @@
 #include <random>
 #include <vector>
 
+#include "chain_pass.hpp"
 #include "chain_search.hpp"
 #include "linksight/tracker/chain_fit.hpp"
 #include "test_support.hpp"
@@ -54,7 +55,7 @@ ChainSearchFrames frames_of(const Nodes& nodes, const ComponentGeometry& g) {
   f.r = static_cast<float>(g.ball_radius);
   f.rn = static_cast<float>(g.neck_radius);
   f.L = static_cast<float>(g.neck_length);
-  f.reach = static_cast<float>(std::max(g.ball_radius, g.neck_length + g.neck_radius));
+  f.reach = static_cast<float>(detail::chain_search_reach(g));
   return f;
 }
 

@@ -164,6 +164,9 @@ OpenCLDevice describe(int pi, int di, cl_platform_id p, cl_device_id d) {
   const std::string ext = device_string(d, CL_DEVICE_EXTENSIONS);
   o.int64_atomics = has_extension(ext, "cl_khr_int64_base_atomics");
   o.fp64 = has_extension(ext, "cl_khr_fp64");
+  o.fp32_rounded_sqrt =
+      (device_value<cl_device_fp_config>(d, CL_DEVICE_SINGLE_FP_CONFIG) &
+       CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) != 0;
   return o;
 }
 
@@ -293,10 +296,11 @@ class OpenCLBackend final : public Backend, public ChainPassDevice {
                                   ": device '" + info_.name + "' allows at most " +
                                   std::to_string(limit));
     }
-    // chain-fit's passes need double precision; without it, or should its kernels not
-    // build here, they run on the host (chain_pass_device() is null) and paper mode's
-    // kernels are unaffected.
-    if (info_.fp64) {
+    // chain-fit's passes need double precision and a correctly rounded float square root
+    // (OpenCL allows -cl-fp32-correctly-rounded-divide-sqrt only where the device reports
+    // it); without them, or should its kernels not build here, they run on the host
+    // (chain_pass_device() is null) and paper mode's kernels are unaffected.
+    if (info_.fp64 && info_.fp32_rounded_sqrt) {
       try {
         build_chain_kernels(limit);
       } catch (const std::runtime_error&) {  // the host fits

@@ -11,6 +11,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace linksight {
@@ -22,6 +24,10 @@ using detail::Mat5;
 using detail::Vec5;
 
 Frames frames_of(const ChainState& chain, const ComponentGeometry& g) {
+  // Associations hold a component's index in 16 bits.
+  if (chain.axis.size() > static_cast<std::size_t>(std::numeric_limits<std::int16_t>::max()))
+    throw std::invalid_argument("chain-fit: " + std::to_string(chain.axis.size()) +
+                                " components; at most 32767");
   Frames f;
   f.centre = chain.nodes(g.pitch);
   for (std::size_t k = 0; k < chain.axis.size(); ++k) {

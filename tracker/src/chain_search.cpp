@@ -152,12 +152,20 @@ template <int W, int P>
   }
 }
 
-#if defined(__GNUC__) && defined(__x86_64__)
+// Whether the CPU has AVX2, found once.
 bool has_avx2() {
-  __builtin_cpu_init();  // idempotent; needed should a static initializer get here first
-  return __builtin_cpu_supports("avx2") != 0;
+#if defined(__GNUC__) && defined(__x86_64__)
+  static const bool avx2 = [] {
+    __builtin_cpu_init();  // idempotent; needed should a static initializer get here first
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return avx2;
+#else
+  return false;
+#endif
 }
 
+#if defined(__GNUC__) && defined(__x86_64__)
 // The same code with 8 lanes, compiled for AVX2 (everything above is inlined into it).
 __attribute__((target("avx2"))) void search_range_avx2(const float* x, const float* y,
                                                        const float* z, std::size_t begin,
@@ -189,12 +197,7 @@ void chain_search_range_lanes(int lanes, const float* x, const float* y, const f
 void chain_search_range(const float* x, const float* y, const float* z, std::size_t begin,
                         std::size_t end, std::size_t stride, const ChainSearchFrames& f,
                         std::int16_t* out) {
-#if defined(__GNUC__) && defined(__x86_64__)
-  static const bool avx2 = has_avx2();
-#else
-  constexpr bool avx2 = false;
-#endif
-  chain_search_range_lanes(avx2 ? 8 : 4, x, y, z, begin, end, stride, f, out);
+  chain_search_range_lanes(has_avx2() ? 8 : 4, x, y, z, begin, end, stride, f, out);
 }
 
 }  // namespace linksight::detail

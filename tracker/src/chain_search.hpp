@@ -1,6 +1,6 @@
 #pragma once
-// chain-fit's search for each point's component (chain_fit.cpp), in float and eight points
-// at a time, as paper mode's association (kernels.hpp) is. The answer is defined as the
+// chain-fit's search for each point's component (chain_fit.cpp), in float and two vectors
+// of points at a time, as paper mode's association (kernels.hpp) is. The answer is defined as the
 // argmin over every component of the float distance to its surface (ball of radius r at
 // the centre ∪ capsule of radius r_n along [0, L] of the axis), ties to the lower index.
 // The device (chain.cl) computes exactly that, by brute force; the CPU skips components

@@ -380,6 +380,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   s.frames = static_cast<int>(frames.size());
   s.window = p.window;
   s.depth_bin_max_angle = p.depth_bin_max_angle;
+  s.neighbour_jump = p.neighbour_jump;
   CorrelationSums corr;
   std::vector<std::vector<DepthStats::Window>> scale_samples(p.scale_windows.size());
   std::vector<Edge> edges;
@@ -1170,8 +1171,13 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
   // The camera's rule for steps: on where the recording reports under one pair of valid
   // 4-neighbours more than the jump apart per million, over enough pairs to tell (the SR305
   // frames: none in 1.27 million).
+  // The statistic counts steps over its neighbour_jump, the rule drops them over edges.jump:
+  // only where the two are the same does the one say what the other does.
   constexpr long kMinStepPairs = 100000;
-  if (s.neighbour_pairs >= kMinStepPairs) {
+  if (!e.enabled || e.jump != s.neighbour_jump) {
+    fit.notes.emplace_back("edges.drop_steps kept: the edge model is off, or its jump_m is not "
+                           "the statistics' neighbour_jump");
+  } else if (s.neighbour_pairs >= kMinStepPairs) {
     e.drop_steps = s.neighbour_jumps * 1000000 < s.neighbour_pairs;
     std::snprintf(line, sizeof line,
                   "edges.drop_steps %s: %ld of %ld valid neighbour pairs step more than the "

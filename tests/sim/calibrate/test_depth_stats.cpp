@@ -190,9 +190,19 @@ TEST(DepthStats, TheFitDropsStepsWhereTheCameraReportsNone) {
   EXPECT_EQ(off_note.rfind("edges.drop_steps off: ", 0), 0u) << off_note;
   s.neighbour_jumps = s.neighbour_pairs / 1000000;  // just under
   EXPECT_TRUE(fitted(NoiseParams::sr300()).first);
+  s.neighbour_jumps = 0;
+  // The rule's threshold is edges.jump, the statistic's its neighbour_jump: another jump, or
+  // the edge model off, says nothing about the rule, which is kept.
+  NoiseParams start = NoiseParams::sr300();
+  start.edges.jump = 0.5 * s.neighbour_jump;
+  EXPECT_FALSE(fitted(start).first);
+  EXPECT_EQ(fitted(start).second.rfind("edges.drop_steps kept: ", 0), 0u);
+  start = NoiseParams::sr300();
+  start.edges.enabled = false;
+  EXPECT_FALSE(fitted(start).first);
+  start = NoiseParams::sr300();
   s.neighbour_pairs = 99999;
   s.neighbour_jumps = 0;
-  NoiseParams start = NoiseParams::sr300();
   for (const bool kept : {false, true}) {
     start.edges.drop_steps = kept;
     const auto [value, note] = fitted(start);

@@ -17,7 +17,11 @@ struct OpenCLDevice {
   std::uint64_t global_memory_bytes = 0, local_memory_bytes = 0;
   std::size_t max_work_group_size = 0;
   bool int64_atomics = false;  ///< cl_khr_int64_base_atomics: needed by the back end
-  bool fp64 = false;           ///< cl_khr_fp64: not needed, listed for information
+  bool fp64 = false;           ///< cl_khr_fp64: chain-fit's kernels need it
+  /// CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT in CL_DEVICE_SINGLE_FP_CONFIG: chain-fit's kernels
+  /// need it too (their float search must round as the CPU's); without either, its passes
+  /// run on the host.
+  bool fp32_rounded_sqrt = false;
 };
 
 /// Whether this build has the OpenCL back end (OpenCL headers and an ICD loader were

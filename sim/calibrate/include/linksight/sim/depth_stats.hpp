@@ -118,6 +118,7 @@ struct DepthStats {
   /// more than params.neighbour_jump apart in depth (a real camera leaves a discontinuity
   /// invalid; per million pairs: neighbour_jumps * 1e6 / neighbour_pairs).
   long neighbour_pairs = 0, neighbour_jumps = 0;
+  double neighbour_jump = 0;  ///< the params.neighbour_jump they were counted with [m]
   /// near_left: the near surface left of the gap (its right edge); near_right: the other.
   EdgeSide near_left, near_right;
   /// Projector: which side the shadows show it on, and the baseline along the camera's
