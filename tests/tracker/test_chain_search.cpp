@@ -40,23 +40,19 @@ std::int16_t brute_force(float px, float py, float pz, const ChainSearchFrames& 
   return bk;
 }
 
-// The test link's components in float, as chain_fit.cpp's frames_of rounds them.
+// The test link's components in float, through the rounding chain_fit.cpp uses.
 ChainSearchFrames frames_of(const Nodes& nodes, const ComponentGeometry& g) {
-  ChainSearchFrames f;
+  detail::ChainFrames f;
+  std::vector<double>* const centre[3] = {&f.cx, &f.cy, &f.cz};
+  std::vector<double>* const axis[3] = {&f.ax, &f.ay, &f.az};
   for (std::size_t k = 0; k + 1 < nodes.size(); ++k) {
     const Eigen::Vector3d a = (nodes[k + 1] - nodes[k]).normalized();
-    f.cx.push_back(static_cast<float>(nodes[k].x()));
-    f.cy.push_back(static_cast<float>(nodes[k].y()));
-    f.cz.push_back(static_cast<float>(nodes[k].z()));
-    f.ax.push_back(static_cast<float>(a.x()));
-    f.ay.push_back(static_cast<float>(a.y()));
-    f.az.push_back(static_cast<float>(a.z()));
+    for (int i = 0; i < 3; ++i) {
+      centre[i]->push_back(nodes[k][i]);
+      axis[i]->push_back(a[i]);
+    }
   }
-  f.r = static_cast<float>(g.ball_radius);
-  f.rn = static_cast<float>(g.neck_radius);
-  f.L = static_cast<float>(g.neck_length);
-  f.reach = static_cast<float>(detail::chain_search_reach(g));
-  return f;
+  return detail::search_frames(f, g);
 }
 
 struct Points {

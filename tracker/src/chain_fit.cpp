@@ -42,21 +42,7 @@ Frames frames_of(const ChainState& chain, const ComponentGeometry& g) {
     f.ay.push_back(a.y());
     f.az.push_back(a.z());
   }
-  // The search's float copies: rounded to nearest, as the device converts its doubles.
-  detail::ChainSearchFrames& sf = f.search;
-  const auto to_f = [](const std::vector<double>& v) {
-    return std::vector<float>(v.begin(), v.end());
-  };
-  sf.cx = to_f(f.cx);
-  sf.cy = to_f(f.cy);
-  sf.cz = to_f(f.cz);
-  sf.ax = to_f(f.ax);
-  sf.ay = to_f(f.ay);
-  sf.az = to_f(f.az);
-  sf.r = static_cast<float>(g.ball_radius);
-  sf.rn = static_cast<float>(g.neck_radius);
-  sf.L = static_cast<float>(g.neck_length);
-  sf.reach = static_cast<float>(detail::chain_search_reach(g));
+  f.search = detail::search_frames(f, g);
   return f;
 }
 

@@ -41,6 +41,26 @@ struct ChainFrames {
   ChainSearchFrames search;               // the same in float, for the search
 };
 
+// The search's float copies of f's centres and axes and of g's sizes: rounded to nearest,
+// as the device converts its doubles.
+inline ChainSearchFrames search_frames(const ChainFrames& f, const ComponentGeometry& g) {
+  const auto to_f = [](const std::vector<double>& v) {
+    return std::vector<float>(v.begin(), v.end());
+  };
+  ChainSearchFrames s;
+  s.cx = to_f(f.cx);
+  s.cy = to_f(f.cy);
+  s.cz = to_f(f.cz);
+  s.ax = to_f(f.ax);
+  s.ay = to_f(f.ay);
+  s.az = to_f(f.az);
+  s.r = static_cast<float>(g.ball_radius);
+  s.rn = static_cast<float>(g.neck_radius);
+  s.L = static_cast<float>(g.neck_length);
+  s.reach = static_cast<float>(chain_search_reach(g));
+  return s;
+}
+
 // A point's residual depends on its own component only, through u = [dc_k; dtheta_k]: the
 // move of ball k's centre and the tangent rotation of axis k (which moves a neck point by
 // s along the tangent). So a pass sums, per component, the 5x5 normal equations in u; the
