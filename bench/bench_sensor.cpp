@@ -13,9 +13,10 @@
 namespace {
 using namespace linksight::sim;
 
-// The axial field: the preset's, two anisotropic fields, or one Matern-5/2 field of ranges
-// 7 x 8 px (issue 20): what each costs.
-enum class Field { preset, two_terms, matern };
+// The axial field: the preset's, two anisotropic fields, one Matern-5/2 field of ranges
+// 7 x 8 px, or the two-scale structure that calibrate-noise fits to the shared SR305 frames
+// (issue 20; docs/sensor.md): what each costs.
+enum class Field { preset, two_terms, matern, two_scale };
 
 void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractParams::Mode mode,
                     bool chain_only = false, Field field = Field::preset) {
@@ -30,6 +31,21 @@ void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractPara
     scene.noise.axial.kernel = AxialKernel::matern52;
     scene.noise.axial.correlation_px = 7;
     scene.noise.axial.correlation_cols_px = 8;
+  } else if (field == Field::two_scale) {
+    // `calibrate-noise --structure two-scale` on all 11 frames (2026-11-27), rounded.
+    AxialNoise& ax = scene.noise.axial;
+    ax.a = 0.000149;
+    ax.c = 0.00248;
+    ax.k_theta = 0.00058;
+    ax.correlation_px = 1.9;
+    ax.correlation_cols_px = 2.55;
+    ax.low_share = 0.975;
+    ax.low_rows_px = 6;
+    ax.low_cols_px = 6;
+    ax.low_angle_term = false;
+    ax.low_stride_px = 2;
+    scene.noise.dropouts.max_incidence = 71.3 * 3.14159265358979323846 / 180;
+    scene.noise.dropouts.hole_rate = 52;
   }
   auto world = make_world(scene);
   const double t = 2.3;
@@ -94,6 +110,14 @@ BENCHMARK_CAPTURE(BM_SensorFrame, default_truth_matern, "default.yaml",
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only_matern, "default.yaml",
                   ExtractParams::Mode::truth, true, Field::matern)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+// And with the two-scale structure: the low field's blur reaches 24 px, and each pixel
+// scales its two fields apart.
+BENCHMARK_CAPTURE(BM_SensorFrame, default_truth_two_scale, "default.yaml",
+                  ExtractParams::Mode::truth, false, Field::two_scale)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only_two_scale, "default.yaml",
+                  ExtractParams::Mode::truth, true, Field::two_scale)
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_SensorFrame, occluder_pass_depth, "occluder_pass.yaml",
                   ExtractParams::Mode::depth)

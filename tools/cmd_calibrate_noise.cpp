@@ -34,6 +34,7 @@ struct CalibrateOptions {
   bool no_figures = false;
   std::string structure = "one-field";  // sim::NoiseStructure
   std::string half = "all";             // sim::FrameHalf
+  int sweeps = sim::RerenderFitParams{}.sweeps;  // two-scale's search
 };
 
 // The --structure values, from the structures' one list.
@@ -247,8 +248,19 @@ int run_calibrate(const CalibrateOptions& o) {
     }
   }
   const sim::DepthStats* shape_p = o.no_shape_correction ? nullptr : &shape;
-  const sim::NoiseFit fit = sim::fit_noise(stats, sim::NoiseParams::sr300(), shape_p,
-                                           sim::parse_noise_structure(o.structure));
+  const sim::NoiseStructure structure = sim::parse_noise_structure(o.structure);
+  sim::NoiseFit fit;
+  if (structure == sim::NoiseStructure::two_scale) {
+    sim::RerenderFitParams p;
+    p.sweeps = o.sweeps;
+    try {
+      fit = sim::fit_noise_rerendered(frames, K, stats, shape_p, sim::NoiseParams::sr300(), p);
+    } catch (const std::invalid_argument& e) {
+      throw io::InputError(o.input + ": re-rendering its surfaces: " + e.what());
+    }
+  } else {
+    fit = sim::fit_noise(stats, sim::NoiseParams::sr300(), shape_p, structure);
+  }
   io::StagedFiles out;
   out.open(o.out) << noise_yaml(fit, o.input, stats.frames, o.half);
   if (!o.report.empty()) {
@@ -295,9 +307,14 @@ Runner add_calibrate_noise(CLI::App& app) {
   app.add_option("--structure", o->structure,
                  "the axial field fitted: one-field (one isotropic width, the sr300 preset's) "
                  "or two-term (a pixel-scale and a low-frequency field, each with row and "
-                 "column widths) or matern52 (one Matern-5/2 field with row and column ranges; "
-                 "docs/sensor.md)")
+                 "column widths) or matern52 (one Matern-5/2 field with row and column ranges) "
+                 "or two-scale (a pixel-scale field with the angle term and a low-frequency "
+                 "one without, fitted by re-rendering the frames: minutes; docs/sensor.md)")
       ->check(CLI::IsMember(structure_names()))
+      ->capture_default_str();
+  app.add_option("--sweeps", o->sweeps,
+                 "two-scale: pattern-search sweeps (each re-renders the frames 18 times)")
+      ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");

@@ -1660,6 +1660,24 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   EXPECT_EQ(matern.low_share, 0.0);
   EXPECT_GE(matern.correlation_px, sim::kMinMaternRangePx);
   EXPECT_GT(matern.correlation_cols_px, matern.correlation_px);
+  // The two-scale structure, fitted by re-rendering the frames (one sweep here; the default
+  // 12 take about 40 s on these 11 frames): a block a scene accepts, the low field without
+  // the angle term, max_incidence fitted.
+  const fs::path scaled = dir / "two-scale.yaml";
+  const CliRun r3 = run("calibrate-noise --structure two-scale --sweeps 1 --quiet --input " +
+                            (real / "frames").string() + " --intrinsics " +
+                            (real / "intrinsics.json").string() + " --out " + scaled.string(),
+                        dir);
+  EXPECT_EQ(r3.code, 0) << r3.err;
+  const std::string text3 = slurp_text(scaled);
+  EXPECT_NE(text3.find("# note: two-scale structure by re-rendering 11 frames (19 renders, 1 sweeps)"),
+            std::string::npos)
+      << text3;
+  EXPECT_NE(text3.find("# note: lateral.sigma_px and dropouts.min_signal kept"), std::string::npos) << text3;
+  std::ofstream(dir / "scene3.yaml") << "duration_s: 0.1\n" << text3;
+  const sim::AxialNoise scales = sim::load_scene(dir / "scene3.yaml").noise.axial;
+  EXPECT_FALSE(scales.low_angle_term);
+  EXPECT_GT(scales.low_share, 0.5);
 }
 
 TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
@@ -1672,6 +1690,9 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
   expect_refused("calibrate-noise --input " + (dir / "in").string() + k, "no valid pixel");
   expect_refused("calibrate-noise --structure three --input " + (real / "frames").string() + k,
                  "--structure");
+  expect_refused("calibrate-noise --structure two-scale --sweeps -1 --input " +
+                     (real / "frames").string() + k,
+                 "--sweeps");
   // Intrinsics that do not match the frames.
   io::Intrinsics small;
   small.width = 32;

@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "linksight/sim/sensor.hpp"
+#include "surface_render.hpp"
 #include "linksight/tracker/quantile.hpp"
 
 namespace linksight::sim {
@@ -689,25 +690,32 @@ WindowResponse window_response(const AxialNoise& axial, int window) {
   return m.response(m.sums(axial));
 }
 
+SurfaceRender render_surface(const io::DepthImage& depth, const io::Intrinsics& K,
+                             const NoiseParams& noise, std::uint64_t seed, std::uint64_t frame,
+                             const DepthSurfaceParams& surface) {
+  BackgroundObject b;
+  b.shape.kind = Shape::Kind::mesh;
+  b.shape.mesh_data = std::make_shared<const TriangleMesh>(depth_surface_mesh(depth, K, surface));
+  SensorParams p;
+  p.camera.intrinsics = K;
+  p.camera.X_WC = Eigen::Isometry3d::Identity();
+  p.noise = noise;
+  const ComponentGeometry g;
+  SurfaceRender out;
+  out.sensor = std::make_unique<Sensor>(p, g, std::vector<Occluder>{}, std::vector<BackgroundObject>{b});
+  // The link out of the way, behind the camera.
+  std::vector<Eigen::Isometry3d> X(static_cast<std::size_t>(g.count), Eigen::Isometry3d::Identity());
+  for (Eigen::Isometry3d& x : X) x.translation() = Eigen::Vector3d(0, 0, -5);
+  out.sensor->render(X, 0.0, seed, frame, out.frame);
+  return out;
+}
+
 std::vector<io::DepthImage> rerender_surfaces(const std::vector<io::DepthImage>& frames,
                                               const io::Intrinsics& K, const NoiseParams& noise,
                                               std::uint64_t seed, const DepthSurfaceParams& surface) {
   std::vector<io::DepthImage> out;
-  for (std::size_t f = 0; f < frames.size(); ++f) {
-    BackgroundObject b;
-    b.shape.kind = Shape::Kind::mesh;
-    b.shape.mesh_data = std::make_shared<const TriangleMesh>(depth_surface_mesh(frames[f], K, surface));
-    SensorParams p;
-    p.camera.intrinsics = K;
-    p.camera.X_WC = Eigen::Isometry3d::Identity();
-    p.noise = noise;
-    const ComponentGeometry g;
-    Sensor sensor(p, g, {}, {b});
-    // The link out of the way, behind the camera.
-    std::vector<Eigen::Isometry3d> X(static_cast<std::size_t>(g.count), Eigen::Isometry3d::Identity());
-    for (Eigen::Isometry3d& x : X) x.translation() = Eigen::Vector3d(0, 0, -5);
-    out.push_back(sensor.render(X, 0.0, seed, f).depth);
-  }
+  for (std::size_t f = 0; f < frames.size(); ++f)
+    out.push_back(std::move(render_surface(frames[f], K, noise, seed, f, surface).frame.depth));
   return out;
 }
 
@@ -905,6 +913,7 @@ std::string_view to_string(NoiseStructure structure) {
     case NoiseStructure::one_field: return "one-field";
     case NoiseStructure::two_term: return "two-term";
     case NoiseStructure::matern52: return "matern52";
+    case NoiseStructure::two_scale: return "two-scale";
   }
   return "?";
 }
@@ -913,7 +922,7 @@ NoiseStructure parse_noise_structure(std::string_view name) {
   for (const NoiseStructure s : kNoiseStructures)
     if (name == to_string(s)) return s;
   throw std::invalid_argument("noise structure '" + std::string(name) +
-                              "': expected one-field, two-term or matern52");
+                              "': expected one-field, two-term, matern52 or two-scale");
 }
 
 std::string_view to_string(FrameHalf half) {
@@ -963,6 +972,9 @@ std::vector<std::size_t> frame_half(const std::vector<io::DepthImage>& frames,
 
 NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthStats* shape,
                    NoiseStructure structure) {
+  if (structure == NoiseStructure::two_scale)
+    throw std::invalid_argument("fit_noise: the two-scale structure is fitted by re-rendering "
+                                "the frames (fit_noise_rerendered)");
   const int window = s.window;
   NoiseFit fit;
   fit.params = start;

@@ -55,6 +55,13 @@ void NoiseParams::validate() const {
         fields::fail("noise", key, r,
                      "must be 0 or >= " + format_shortest(kMinMaternRangePx) +
                          " with kernel matern52 (its filter follows the covariance from there)");
+  if (axial.low_share > 0 && axial.low_stride_px > 1)
+    for (const auto& [key, w] : {std::pair{"axial.low_rows_px", axial.low_rows_px},
+                                 std::pair{"axial.low_cols_px", axial.low_cols_px}})
+      if (w < axial.low_stride_px)
+        fields::fail("noise", key, w,
+                     "must be >= low_stride_px (" + std::to_string(axial.low_stride_px) +
+                         "): the grid would undersample the field");
   if (axial.correlation_cols_px > 0 && !(axial.correlation_px > 0))
     fields::fail("noise", "axial.correlation_cols_px", axial.correlation_cols_px,
                  "needs correlation_px > 0 (a white pixel-scale term has no width)");

@@ -13,7 +13,7 @@ namespace linksight::sim::detail {
 
 // The draws' streams per pixel key.
 enum Stream : std::uint64_t {
-  kJitter = 0, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6, kAxialLow = 7
+  kJitter = 0, kAxial = 2, kEdge = 4, kFlying = 5, kMix = 6, kAxialLow = 7, kAxialLowGrid = 8
 };
 
 // The seed of frame `frame` of the sensor's draws from the run's `seed`.

@@ -15,6 +15,7 @@ namespace {
 
 using detail::kAxial;
 using detail::kAxialLow;
+using detail::kAxialLowGrid;
 using detail::kEdge;
 using detail::kFlying;
 using detail::kMix;
@@ -104,9 +105,9 @@ SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
     rows_kernel_ = taps(ax.rows_px());
     cols_kernel_ = taps(ax.cols_px());
   }
-  if (ax.low_share > 0) {
-    low_rows_kernel_ = unit_variance_gaussian(ax.low_rows_px);
-    low_cols_kernel_ = unit_variance_gaussian(ax.low_cols_px);
+  if (ax.low_share > 0) {  // in grid steps where the field is drawn on a grid
+    low_rows_kernel_ = unit_variance_gaussian(ax.low_rows_px / ax.low_stride_px);
+    low_cols_kernel_ = unit_variance_gaussian(ax.low_cols_px / ax.low_stride_px);
   }
 }
 
@@ -208,7 +209,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
   // The field of `stream` over the box, blurred by `rows` then `cols` (white where they are
   // empty), each pixel's value times `weight` added into field_.
   const auto add_field = [&](const std::vector<float>& rows, const std::vector<float>& cols,
-                             std::uint64_t stream, float weight) {
+                             std::uint64_t stream, float weight, std::vector<float>& field) {
     const int Ru = static_cast<int>(rows.size() / 2), Rv = static_cast<int>(cols.size() / 2);
     const int fu0 = std::max(0, bu0 - Ru), fu1 = std::min(W - 1, bu1 + Ru);
     const int fv0 = std::max(0, bv0 - Rv), fv1 = std::min(H - 1, bv1 + Rv);
@@ -229,15 +230,66 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int y = 0; y < fh; ++y) {
       const float* src = white_.data() + static_cast<std::ptrdiff_t>(y) * fw;
-      float* dst = field_.data() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0;
+      float* dst = field.data() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0;
       for (int x = 0; x < fw; ++x) dst[x] += weight * src[x];
     }
   };
+  // The low field on a grid of stride S: node (gx, gy) sits at pixel (gx S, gy S), and
+  // the grid covers the image and one node beyond, so every pixel has its four nodes. A
+  // node's white value depends on its index in that whole grid only, so a render of a box
+  // sees the whole frame's field inside it; the blur runs over the nodes the box needs
+  // plus the kernels' reach, and each pixel of the box interpolates bilinearly.
+  const auto add_grid_field = [&](const std::vector<float>& rows, const std::vector<float>& cols,
+                                  int S, float weight, std::vector<float>& field) {
+    const int GW = (W - 1) / S + 2, GH = (H - 1) / S + 2;
+    const int Ru = static_cast<int>(rows.size() / 2), Rv = static_cast<int>(cols.size() / 2);
+    const int gx0 = std::max(0, bu0 / S - Ru), gx1 = std::min(GW - 1, bu1 / S + 1 + Ru);
+    const int gy0 = std::max(0, bv0 / S - Rv), gy1 = std::min(GH - 1, bv1 / S + 1 + Rv);
+    const int gw = gx1 - gx0 + 1, gh = gy1 - gy0 + 1;
+    white_.resize(static_cast<std::size_t>(gw) * gh);
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int gy = gy0; gy <= gy1; ++gy)
+      for (int gx = gx0; gx <= gx1; ++gx)
+        white_[static_cast<std::size_t>(gy - gy0) * gw + (gx - gx0)] = static_cast<float>(
+            normal(pixel_key(frame_seed, static_cast<std::size_t>(gy) * GW + gx), kAxialLowGrid));
+    blurred_.resize(static_cast<std::size_t>(gw) * gh);
+    blur_rows(white_, blurred_, gw, gh, rows, threads);
+    blur_columns(blurred_, white_, gw, gh, cols, threads);
+    const float step = 1.0F / static_cast<float>(S);
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int v = bv0; v <= bv1; ++v) {
+      const float fy = static_cast<float>(v % S) * step;
+      const float* r0 = white_.data() + static_cast<std::ptrdiff_t>(v / S - gy0) * gw;
+      const float* r1 = r0 + gw;
+      float* dst = field.data() + static_cast<std::ptrdiff_t>(v) * W;
+      for (int u = bu0; u <= bu1; ++u) {
+        const int g = u / S - gx0;
+        const float fx = static_cast<float>(u % S) * step;
+        const float top = (1 - fx) * r0[g] + fx * r0[g + 1];
+        const float bottom = (1 - fx) * r1[g] + fx * r1[g + 1];
+        dst[u] += weight * ((1 - fy) * top + fy * bottom);
+      }
+    }
+  };
+  const auto add_low = [&](float weight, std::vector<float>& field) {
+    if (ax.low_stride_px > 1)
+      add_grid_field(low_rows_kernel_, low_cols_kernel_, ax.low_stride_px, weight, field);
+    else
+      add_field(low_rows_kernel_, low_cols_kernel_, kAxialLow, weight, field);
+  };
+  // Without the angle term in the low field, the two fields stay apart (unit variance
+  // each) and are scaled per pixel below.
+  const bool split = low && !ax.low_angle_term;
   if (correlated && bu1 >= 0) {
     field_.assign(n, 0.0F);
-    add_field(rows_kernel_, cols_kernel_, kAxial, static_cast<float>(std::sqrt(1 - ax.low_share)));
-    if (low)
-      add_field(low_rows_kernel_, low_cols_kernel_, kAxialLow, static_cast<float>(std::sqrt(ax.low_share)));
+    add_field(rows_kernel_, cols_kernel_, kAxial,
+              split ? 1.0F : static_cast<float>(std::sqrt(1 - ax.low_share)), field_);
+    if (split) {
+      low_field_.assign(n, 0.0F);
+      add_low(1.0F, low_field_);
+    } else if (low) {
+      add_low(static_cast<float>(std::sqrt(ax.low_share)), field_);
+    }
   }
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = camera_.z_min, z_max = camera_.z_max;
@@ -300,9 +352,15 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
           }
         }
       }
-      if (noise.axial.enabled)
+      if (split) {
+        const AxialNoise::Point p = ax.point(z0, in.incidence[pix]);
+        const double base = ax.a + ax.c * p.z * p.z, angle = ax.sigma(p) - base;
+        z += std::sqrt((1 - ax.low_share) * base * base + angle * angle) * static_cast<double>(field_[pix]) +
+             std::sqrt(ax.low_share) * base * static_cast<double>(low_field_[pix]);
+      } else if (noise.axial.enabled) {
         z += noise.axial.sigma(z0, in.incidence[pix]) *
              (correlated ? static_cast<double>(field_[pix]) : normal(key, kAxial));
+      }
       if (z < z_min || z > z_max) continue;
       const long q = static_cast<long>(z / unit + 0.5);  // z > 0 here
       if (q <= 0 || q > 65535) continue;

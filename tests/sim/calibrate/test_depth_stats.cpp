@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <random>
 #include <string>
@@ -328,8 +329,9 @@ struct HeldOutStats {
   DepthStats real, sim;    // the test half: real, and re-rendered with the fit
 };
 
+// `structure`: one_field (fit_noise) or two_scale (fit_noise_rerendered).
 HeldOutStats held_out(const std::vector<io::DepthImage>& all, const io::Intrinsics& K,
-                      const HeldOut& h) {
+                      const HeldOut& h, NoiseStructure structure = NoiseStructure::one_field) {
   const std::vector<io::DepthImage> fit_frames = half_of(all, K, h.fit);
   const std::vector<io::DepthImage> test_frames = half_of(all, K, h.test);
   HeldOutStats out;
@@ -337,7 +339,10 @@ HeldOutStats held_out(const std::vector<io::DepthImage>& all, const io::Intrinsi
   NoiseParams quiet = NoiseParams::off();
   quiet.quantize = true;
   const DepthStats shape = depth_stats(rerender_surfaces(fit_frames, K, quiet, 1), K);
-  const NoiseParams fitted = fit_noise(out.fit, NoiseParams::sr300(), &shape).params;
+  const NoiseParams fitted =
+      structure == NoiseStructure::two_scale
+          ? fit_noise_rerendered(fit_frames, K, out.fit, &shape, NoiseParams::sr300()).params
+          : fit_noise(out.fit, NoiseParams::sr300(), &shape, structure).params;
   out.real = depth_stats(test_frames, K);
   out.sim = depth_stats(rerender_surfaces(test_frames, K, fitted, 1), K);
   return out;
@@ -432,28 +437,35 @@ TEST(DepthStats, HeldOutFidelityOfTheOneFieldFit) {
   }
 }
 
-// The issue's held-out targets for what the one-field model does not reproduce (issue 20):
-// quadratic-fit sigma per angle bin, the correlation along rows and along columns at lags
-// 1-4 (where the camera's is under 0.2, within 0.05 instead of a ratio), the
-// quadratic-beats-plane share, the flying-pixel rate (beside the bands) and the holes per
-// frame within 0.8-1.25, and neighbour jumps > 20 mm within a factor of 2 (of at least 1
-// per million: the camera shows none). Red today (docs/sensor.md gives each ratio); label
-// fidelity-full, outside CI, as robustness-full. Part 4's preset is to turn it green.
+// The issue's held-out targets (issue 20), for the two-scale structure fitted by
+// re-rendering (fit_noise_rerendered) on one half and compared on the other: plane-fit sigma
+// per depth and per angle bin and quadratic-fit sigma per angle bin (bins the fit half
+// holds 10 windows of), the correlation along rows and along columns at lags 1-4 (where
+// the camera's is under kSmallCorrelation, within kSmallCorrelationTol instead of a
+// ratio), the quadratic-beats-plane share, the flying-pixel rate (beside the bands) and
+// the holes per frame within 0.8-1.25, and neighbour jumps > 20 mm within a factor of 2 (of
+// at least 1 per million: the camera shows none); and, since the fit moves
+// dropouts.max_incidence, the edge bands within the one-field test's 30%. Red today on a
+// few of them (docs/sensor.md gives each ratio); label fidelity-full, outside CI, as
+// robustness-full: four fits of about 20 s each.
 TEST(HeldOutFidelity, IssueTwentyTargets) {
   io::Intrinsics K;
   const std::vector<io::DepthImage> all = real_frames(K);
   for (const HeldOut& h : kHeldOut) {
     SCOPED_TRACE("fit on " + std::string(to_string(h.fit)) + ", test on " +
                  std::string(to_string(h.test)));
-    const HeldOutStats s = held_out(all, K, h);
+    const HeldOutStats s = held_out(all, K, h, NoiseStructure::two_scale);
+    (void)expect_sigma_bins(s.fit.sigma_by_depth, s.real.sigma_by_depth, s.sim.sigma_by_depth,
+                            "sigma by depth");
+    (void)expect_sigma_bins(s.fit.sigma_by_angle, s.real.sigma_by_angle, s.sim.sigma_by_angle,
+                            "sigma by angle");
     (void)expect_sigma_bins(s.fit.sigma_quad_by_angle, s.real.sigma_quad_by_angle,
                             s.sim.sigma_quad_by_angle, "quadratic sigma by angle");
     // A ratio of correlations near zero says nothing (the camera's rows read -0.13 at
-    // lag 4): under kSmallCorrelation, within kCorrelationAbsTol instead.
-    constexpr double kSmallCorrelation = 0.2, kCorrelationAbsTol = 0.05;
+    // lag 4).
     const auto correlation = [&](double sim, double real, const std::string& what) {
       if (std::abs(real) >= kSmallCorrelation) return expect_in_band(sim, real, what);
-      EXPECT_NEAR(sim, real, kCorrelationAbsTol) << what;
+      EXPECT_NEAR(sim, real, kSmallCorrelationTol) << what;
     };
     for (int l = 0; l < 4; ++l) {
       correlation(s.sim.correlation_rows[l], s.real.correlation_rows[l],
@@ -471,7 +483,97 @@ TEST(HeldOutFidelity, IssueTwentyTargets) {
     };
     EXPECT_LE(per_million(s.sim), 2 * std::max(per_million(s.real), 1.0));
     EXPECT_GE(per_million(s.sim), 0.5 * per_million(s.real));
+    for (const auto& [name, re, se] : {std::tuple{"near left", s.real.near_left, s.sim.near_left},
+                                       std::tuple{"near right", s.real.near_right, s.sim.near_right}}) {
+      ASSERT_GE(re.edges, 50) << name;
+      EXPECT_NEAR(se.invalid_1px / re.invalid_1px, 1.0, kFidelityEdgeTol) << name;
+      EXPECT_NEAR(se.invalid_2px / re.invalid_2px, 1.0, kFidelityEdgeTol) << name;
+    }
   }
+}
+
+// target_mismatch: the camera against itself costs nothing; each kind of statistic counts
+// by its rule (a ratio's error is 1 at the band's edge, a small correlation's at 0.05 off,
+// the cost the sum of their squares); the ones outside are named with their ratio.
+TEST(DepthStats, TargetMismatchCountsTheIssuesStatistics) {
+  io::Intrinsics K;
+  const DepthStats real = depth_stats(real_frames(K), K);
+  const TargetMismatch self = target_mismatch(real, real);
+  EXPECT_EQ(self.cost, 0.0);
+  EXPECT_TRUE(self.outside.empty());
+  // 4 + 5 + 5 sigma bins, 8 correlations, the share, 2 band pixels and the band's width,
+  // flying, holes.
+  EXPECT_EQ(self.statistics, 28);
+  ASSERT_LT(std::abs(real.correlation_rows[3]), kSmallCorrelation);  // -0.13
+  ASSERT_GE(real.quad_beats_plane, kSmallCorrelation);
+  DepthStats sim = real;
+  sim.quad_beats_plane = real.quad_beats_plane * 1.25 * 1.25;  // e = 2: outside
+  sim.correlation_rows[3] = real.correlation_rows[3] + 0.1;    // e = 2 as well
+  sim.holes_per_frame = real.holes_per_frame / std::sqrt(1.25);  // e = 1/2: inside
+  const TargetMismatch m = target_mismatch(real, sim);
+  EXPECT_NEAR(m.cost, 4 + 4 + 0.25, 1e-9);
+  ASSERT_EQ(m.outside.size(), 2u);
+  EXPECT_EQ(m.outside[0].rfind("correlation rows lag 4 ", 0), 0u) << m.outside[0];
+  EXPECT_EQ(m.outside[1], "quadratic beats plane 1.56");
+  // A statistic the simulation reads as 0 is as far off as can be, not skipped.
+  sim = real;
+  sim.flying_band_rate = 0;
+  EXPECT_GT(target_mismatch(real, sim).cost, 100.0);
+  // A simulation whose bands decide no side is compared on the camera's image side.
+  ASSERT_LT(real.projector_side, 0);  // projector image-left: the other side is near_right
+  sim = real;
+  sim.projector_side = 0;
+  EXPECT_EQ(target_mismatch(real, sim).statistics, 28);
+  sim.near_right.band_median_px = 2 * real.near_right.band_median_px;
+  EXPECT_NE(target_mismatch(real, sim).outside.back().find("other side band median px 2.00"),
+            std::string::npos);
+}
+
+// fit_noise_rerendered on two of the shared frames, one sweep: the pattern search only
+// keeps improvements, so the fit costs no more than its start (the note gives both), the
+// fitted block is the two-scale structure a scene accepts, and 1 and 2 threads give the
+// same fit; fit_noise refuses the structure it cannot fit.
+TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
+  io::Intrinsics K;
+  std::vector<io::DepthImage> frames = real_frames(K);
+  frames.resize(2);
+  const DepthStats s = depth_stats(frames, K);
+  RerenderFitParams p;
+  p.sweeps = 1;
+  p.threads = 1;
+  const NoiseFit one = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300(), p);
+  p.threads = 2;
+  const NoiseFit two = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300(), p);
+  EXPECT_EQ(noise_yaml(one.params), noise_yaml(two.params));
+  EXPECT_EQ(one.notes, two.notes);
+  const AxialNoise& ax = one.params.axial;
+  EXPECT_FALSE(ax.low_angle_term);
+  EXPECT_GT(ax.low_share, 0.0);
+  EXPECT_EQ(ax.kernel, AxialKernel::gaussian);
+  one.params.validate();
+  // "... target mismatch X (start Y) ...": X <= Y, and Y > 0 (the start is not the fit).
+  std::string note;
+  for (const std::string& n : one.notes)
+    if (n.rfind("two-scale structure", 0) == 0) note = n;
+  ASSERT_FALSE(note.empty());
+  const std::size_t at = note.find("target mismatch ");
+  ASSERT_NE(at, std::string::npos) << note;
+  double cost = -1, start = -1;
+  ASSERT_EQ(std::sscanf(note.c_str() + at, "target mismatch %lf (start %lf)", &cost, &start), 2) << note;
+  EXPECT_LE(cost, start);
+  EXPECT_LT(cost, start) << "one sweep of 18 renders found nothing better than the start";
+  for (const std::string& n : one.notes)
+    EXPECT_EQ(n.find("max_incidence, min_signal kept"), std::string::npos) << n;
+  EXPECT_NE(test::error_of<std::invalid_argument>(
+                [&] { (void)fit_noise(s, NoiseParams::sr300(), nullptr, NoiseStructure::two_scale); })
+                .find("fit_noise_rerendered"),
+            std::string::npos);
+  p.sweeps = -1;
+  EXPECT_NE(test::error_of<std::invalid_argument>(
+                [&] { (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300(), p); })
+                .find("sweeps = -1"),
+            std::string::npos);
+  EXPECT_EQ(parse_noise_structure("two-scale"), NoiseStructure::two_scale);
 }
 
 // The estimator's reading of correlated noise: white reads white with the plane fit's own
@@ -627,7 +729,7 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   EXPECT_EQ(parse_noise_structure("matern52"), NoiseStructure::matern52);
   EXPECT_EQ(to_string(NoiseStructure::matern52), "matern52");
   EXPECT_NE(test::error_of<std::invalid_argument>([] { (void)parse_noise_structure("cauchy"); })
-                .find("'cauchy': expected one-field, two-term or matern52"),
+                .find("'cauchy': expected one-field, two-term, matern52 or two-scale"),
             std::string::npos);
 }
 

@@ -536,10 +536,18 @@ TEST(Sensor, ChainOnlyRenderMatchesTheWholeFrameInsideItsBox) {
   two_terms.noise.axial.low_rows_px = 5;
   two_terms.noise.axial.low_cols_px = 7;
   auto two_term_sensor = make_sensor(two_terms, 2);
+  // And the two-scale structure: the low field on a grid of 2 px, without the angle term.
+  Scene two_scales = two_terms;
+  two_scales.noise.axial.low_stride_px = 2;
+  two_scales.noise.axial.low_angle_term = false;
+  auto two_scale_sensor = make_sensor(two_scales, 2);
   for (const auto& [t, cam] : {std::pair{0.0, sensor.get()}, std::pair{6.5, sensor.get()},
-                               std::pair{6.5, two_term_sensor.get()}}) {
+                               std::pair{6.5, two_term_sensor.get()},
+                               std::pair{6.5, two_scale_sensor.get()}}) {
     // The hand is in front of the link at 6.5 s.
-    SCOPED_TRACE(std::to_string(t) + (cam == two_term_sensor.get() ? " s, two terms" : " s"));
+    SCOPED_TRACE(std::to_string(t) + (cam == two_term_sensor.get()    ? " s, two terms"
+                                      : cam == two_scale_sensor.get() ? " s, two scales"
+                                                                      : " s"));
     const DepthFrame a = cam->render(truth.X_WK, t, 7, 3);
     const DepthFrame b = cam->render(truth.X_WK, t, 7, 3, extent);
     EXPECT_EQ(a.rendered, (PixelBox{0, a.width - 1, 0, a.height - 1}));

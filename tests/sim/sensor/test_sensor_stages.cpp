@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <string>
 
@@ -23,10 +24,11 @@ struct Plate {
   int width = 0, height = 0;
   std::vector<float> depth_m, incidence, cos_camera, cos_projector, reflectance;
   std::vector<std::uint8_t> lit;
-  Plate(const io::Intrinsics& K, double z) : width(K.width), height(K.height) {
+  // `theta`: the incidence every pixel reports [rad] (the noise reads it, not the geometry).
+  Plate(const io::Intrinsics& K, double z, double theta = 0) : width(K.width), height(K.height) {
     const std::size_t n = static_cast<std::size_t>(width) * height;
     depth_m.assign(n, static_cast<float>(z));
-    incidence.assign(n, 0.0F);
+    incidence.assign(n, static_cast<float>(theta));
     cos_camera.assign(n, 1.0F);
     cos_projector.assign(n, 1.0F);
     reflectance.assign(n, 1.0F);
@@ -37,18 +39,19 @@ struct Plate {
   }
 };
 
-// The axial field of `n` (the other terms off) on a plate at 0.6 m over 4 frames: its sigma
-// [m] and its correlation at lags 0..lags along rows and along columns, over pixels at
-// least `border` from the image's edge (the filters' reach); the first frame's depth.
+// The axial field of `n` (the other terms off) on a plate at 0.6 m over 4 frames, every
+// pixel at incidence `theta` [rad]: its sigma [m] and its correlation at lags 0..lags
+// along rows and along columns, over pixels at least `border` from the image's edge (the
+// filters' reach); the first frame's depth (with `threads`).
 struct PlateField {
   double sigma = 0;
   std::vector<double> rows, cols;
   std::vector<float> first;
 };
-PlateField plate_field(const NoiseParams& n, int lags, int border) {
+PlateField plate_field(const NoiseParams& n, int lags, int border, double theta = 0, int threads = 2) {
   const CameraParams camera;
   const double z = 0.6;
-  const Plate plate(camera.intrinsics, z);
+  const Plate plate(camera.intrinsics, z, theta);
   SensorNoise noise(n, camera);
   std::vector<double> rows(static_cast<std::size_t>(lags) + 1), cols(rows.size());
   double count = 0;
@@ -56,7 +59,7 @@ PlateField plate_field(const NoiseParams& n, int lags, int border) {
   for (std::uint64_t frame = 0; frame < 4; ++frame) {
     io::DepthImage depth;
     std::vector<float> depth_m;
-    noise.apply(plate.input(), 9, frame, 2, depth, depth_m);
+    noise.apply(plate.input(), 9, frame, threads, depth, depth_m);
     if (frame == 0) out.first = depth_m;
     const int W = plate.width;
     const auto e = [&](int u, int v) {
@@ -185,37 +188,113 @@ TEST(SensorNoise, SameDepthForAnyThreadCount) {
   EXPECT_EQ(one_m, three_m);
 }
 
-// The two-term axial field (issue 20): the pixel-scale term with widths 1 px along rows and
-// 2 px along columns, the low-frequency term with 4 and 8 px and 60% of the variance. On a
-// fronto-parallel plate, without other noise: sigma is the model's, and the correlation at
-// lag L along each direction is (1 - s) exp(-L^2 / 4 w^2) + s exp(-L^2 / 4 W^2) with that
-// direction's widths w, W.
-TEST(SensorNoise, TwoTermFieldHasItsSigmaAndEachDirectionsCorrelation) {
-  constexpr double kSigma = 0.002;  // [m]
-  constexpr double kShare = 0.6;
-  constexpr double kRhoTol = 0.03;  // seen: within 0.01 at every lag
+// The two-term axial field of the tests below: sigma a, the pixel-scale term with widths
+// 1 px along rows and 2 px along columns, the low-frequency term with `low_rows` and
+// `low_cols` [px] and kTwoTermShare of the variance, drawn every `stride` px.
+constexpr double kTwoTermSigma = 0.002, kTwoTermShare = 0.6;  // [m], of the variance
+NoiseParams two_term_noise(double low_rows, double low_cols, int stride = 1) {
   NoiseParams n = NoiseParams::off();
   n.axial.enabled = true;
-  n.axial.a = kSigma;
+  n.axial.a = kTwoTermSigma;
   n.axial.c = 0;
   n.axial.k_theta = 0;
   n.axial.correlation_px = 1.0;
   n.axial.correlation_cols_px = 2.0;
-  n.axial.low_share = kShare;
-  n.axial.low_rows_px = 4.0;
-  n.axial.low_cols_px = 8.0;
+  n.axial.low_share = kTwoTermShare;
+  n.axial.low_rows_px = low_rows;
+  n.axial.low_cols_px = low_cols;
+  n.axial.low_stride_px = stride;
+  return n;
+}
+// On a fronto-parallel plate, without other noise: sigma within kStageSigmaRelTol of a, and
+// the correlation at lag L along each direction (1 - s) exp(-L^2 / 4 w^2) + s exp(-L^2 /
+// 4 W^2) with that direction's widths w, W, within 0.03 (seen: 0.01 at every lag).
+PlateField expect_two_term_field(const NoiseParams& n) {
+  constexpr double kRhoTol = 0.03;
   constexpr int kLags = 6, kBorder = 24;  // away from the image border by the reach, 3 x 8 px
   const PlateField f = plate_field(n, kLags, kBorder);
-  EXPECT_NEAR(f.sigma, kSigma, kStageSigmaRelTol * kSigma);
+  EXPECT_NEAR(f.sigma, kTwoTermSigma, kStageSigmaRelTol * kTwoTermSigma);
   const auto model = [&](int l, double w, double big) {
-    return (1 - kShare) * std::exp(-l * l / (4 * w * w)) + kShare * std::exp(-l * l / (4 * big * big));
+    return (1 - kTwoTermShare) * std::exp(-l * l / (4 * w * w)) +
+           kTwoTermShare * std::exp(-l * l / (4 * big * big));
   };
   for (int l = 1; l <= kLags; ++l) {
-    EXPECT_NEAR(f.rows[l], model(l, 1.0, 4.0), kRhoTol) << "along rows, lag " << l;
-    EXPECT_NEAR(f.cols[l], model(l, 2.0, 8.0), kRhoTol) << "along columns, lag " << l;
+    EXPECT_NEAR(f.rows[l], model(l, 1.0, n.axial.low_rows_px), kRhoTol) << "along rows, lag " << l;
+    EXPECT_NEAR(f.cols[l], model(l, 2.0, n.axial.low_cols_px), kRhoTol) << "along columns, lag " << l;
   }
+  return f;
+}
+
+// The two-term axial field (issue 20), its low term 4 x 8 px.
+TEST(SensorNoise, TwoTermFieldHasItsSigmaAndEachDirectionsCorrelation) {
+  const PlateField f = expect_two_term_field(two_term_noise(4.0, 8.0));
   // The directions differ by far more than the tolerance: 0.56 against 0.81 at lag 3.
   EXPECT_GT(f.cols[3] - f.rows[3], 0.15);
+}
+
+// The low-frequency field drawn on a grid of 2 px and interpolated (low_stride_px): sigma
+// and each direction's correlation as on every pixel (within the same tolerances), the
+// same for any thread count, and not the every-pixel field's draws; widths under the
+// stride are refused.
+TEST(SensorNoise, LowFieldOnAGridKeepsItsSigmaAndCorrelation) {
+  NoiseParams n = two_term_noise(6.0, 8.0, 2);
+  const PlateField f = expect_two_term_field(n);
+  constexpr int kBorder = 24;
+  EXPECT_EQ(plate_field(n, 0, kBorder, 0, 1).first, f.first);
+  EXPECT_EQ(plate_field(n, 0, kBorder, 0, 3).first, f.first);
+  const NoiseParams every = two_term_noise(6.0, 8.0, 1);
+  EXPECT_NE(plate_field(every, 0, kBorder).first, f.first);
+  n.axial.low_rows_px = 1.5;
+  const std::string e =
+      test::error_of<std::invalid_argument>([&] { (void)SensorNoise(n, CameraParams{}); });
+  EXPECT_NE(e.find("noise.axial.low_rows_px = 1.5"), std::string::npos) << e;
+  EXPECT_NE(e.find("must be >= low_stride_px (2)"), std::string::npos) << e;
+}
+
+// The low-frequency field without the angle term (`low_angle_term: false`, issue 20): at
+// normal incidence it is the two-term field above; at 60 degrees, where the angle term t
+// equals the base a, the pixel-scale field carries sqrt((1 - s) a^2 + t^2) and the low one
+// sqrt(s) a, so sigma is sqrt(a^2 + t^2) and the lag-L correlation
+// ((1 - s) a^2 + t^2) rho_pixel(L) + s a^2 rho_low(L), over sigma^2. With the term (the
+// default) sigma is a + t and the shares are those at normal incidence. The same for any
+// thread count.
+TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
+  constexpr double kSigma = 0.002;  // a [m]
+  constexpr double kShare = 0.8, kPixelPx = 1.0, kLowPx = 6.0;
+  constexpr double kRhoTol = 0.04;  // as the Matern test's: 4 frames of a smooth field
+  const double theta = std::numbers::pi / 3;
+  NoiseParams n = NoiseParams::off();
+  n.axial.enabled = true;
+  n.axial.a = kSigma;
+  n.axial.c = 0;
+  // t = k q^2 / sqrt(z) with q = theta / (pi/2 - theta) = 2 at 60 degrees, z = 0.6 m: t = a.
+  n.axial.k_theta = kSigma * std::sqrt(0.6) / 4;
+  n.axial.correlation_px = kPixelPx;
+  n.axial.low_share = kShare;
+  n.axial.low_rows_px = kLowPx;
+  n.axial.low_cols_px = kLowPx;
+  ASSERT_NEAR(n.axial.sigma(0.6, theta), 2 * kSigma, 1e-12);
+  const auto rho = [](int l, double w) { return std::exp(-l * l / (4 * w * w)); };
+  constexpr int kLags = 4, kBorder = 20;  // the low field's reach, 3 x 6 px
+  for (const bool with_angle : {true, false}) {
+    n.axial.low_angle_term = with_angle;
+    SCOPED_TRACE(with_angle ? "low_angle_term true" : "low_angle_term false");
+    const PlateField flat = plate_field(n, kLags, kBorder);
+    EXPECT_NEAR(flat.sigma, kSigma, kStageSigmaRelTol * kSigma);
+    const PlateField steep = plate_field(n, kLags, kBorder, theta, 1);
+    const double pixel = with_angle ? 1 - kShare : (1 - kShare + 1) / 2;  // of sigma^2
+    const double sigma = with_angle ? 2 * kSigma : std::sqrt(2.0) * kSigma;
+    EXPECT_NEAR(steep.sigma, sigma, kStageSigmaRelTol * sigma);
+    for (int l = 1; l <= kLags; ++l) {
+      const double model = pixel * rho(l, kPixelPx) + (1 - pixel) * rho(l, kLowPx);
+      EXPECT_NEAR(flat.rows[l], (1 - kShare) * rho(l, kPixelPx) + kShare * rho(l, kLowPx), kRhoTol)
+          << "normal incidence, lag " << l;
+      EXPECT_NEAR(steep.rows[l], model, kRhoTol) << "60 degrees, along rows, lag " << l;
+      EXPECT_NEAR(steep.cols[l], model, kRhoTol) << "60 degrees, along columns, lag " << l;
+    }
+    // The same image for 1 thread (steep) and 3.
+    EXPECT_EQ(plate_field(n, 0, kBorder, theta, 3).first, steep.first);
+  }
 }
 
 // The new settings at their defaults are the one-field model, bit for bit (old scenes keep

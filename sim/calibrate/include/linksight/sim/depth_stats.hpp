@@ -223,13 +223,16 @@ struct NoiseFit {
 /// along rows and columns plus a low-frequency field with its own widths and share of the
 /// variance (docs/sensor.md: on the shared SR305 frames it does not yet read as the camera
 /// does, so it is not the default); `matern52` one Matern-5/2 field (AxialKernel) with its
-/// own ranges along rows and columns, fitted to the same readings as `two_term`.
-enum class NoiseStructure { one_field, two_term, matern52 };
+/// own ranges along rows and columns, fitted to the same readings as `two_term`;
+/// `two_scale` a pixel-scale field that carries the angle term and a low-frequency field
+/// of a + c z^2 only (AxialNoise::low_angle_term false), fitted by re-rendering the
+/// recording (fit_noise_rerendered: it needs the frames, fit_noise alone refuses it).
+enum class NoiseStructure { one_field, two_term, matern52, two_scale };
 /// Every NoiseStructure, in declaration order (the names' one list: parsing, CLI choices).
 inline constexpr NoiseStructure kNoiseStructures[] = {NoiseStructure::one_field, NoiseStructure::two_term,
-                                                      NoiseStructure::matern52};
-/// "one-field" / "two-term" / "matern52"; parse throws std::invalid_argument naming the
-/// value and choices.
+                                                      NoiseStructure::matern52, NoiseStructure::two_scale};
+/// "one-field" / "two-term" / "matern52" / "two-scale"; parse throws std::invalid_argument
+/// naming the value and choices.
 [[nodiscard]] std::string_view to_string(NoiseStructure structure);
 [[nodiscard]] NoiseStructure parse_noise_structure(std::string_view name);
 
@@ -256,8 +259,51 @@ inline constexpr NoiseStructure kNoiseStructures[] = {NoiseStructure::one_field,
 /// puts into a plane fit: sqrt(sigma^2 - shape^2), since the camera's noise and the
 /// shape's residual add in quadrature (at least a tenth of sigma is kept).
 /// Every term kept from `start`, and every measurement the model cannot follow, gets a note.
+/// Throws std::invalid_argument for `two_scale` (fit_noise_rerendered fits it).
 [[nodiscard]] NoiseFit fit_noise(const DepthStats& stats, const NoiseParams& start,
                                  const DepthStats* shape = nullptr,
                                  NoiseStructure structure = NoiseStructure::one_field);
+
+/// How far a simulated recording's statistics `sim` are from the camera's `real` on the
+/// targets of issue 20 (docs/sensor.md). Each statistic's error e is |ln(sim / real)| /
+/// ln(1.25) (1 at the edge of the band 0.8-1.25), or, for a correlation the camera reads
+/// under kSmallCorrelation in magnitude, |sim - real| / kSmallCorrelationTol; `cost` sums
+/// e^2 (so a fit centres every statistic in its band, rather than stopping inside it, which
+/// held out leaves less at its edges) over: the plane-fit sigma per depth
+/// bin and per angle bin and the quadratic-fit sigma per angle bin (bins with 10 windows on
+/// both sides), the correlation along rows and along columns at lags 1-4, the
+/// quadratic-beats-plane share, the first and second pixel past the near surface invalid
+/// and the median band width on the side away from the projector (where the camera's frames
+/// decide a side; on the same image side where the simulation's do not), the flying rate
+/// beside the bands and the holes per frame (where the camera has any).
+struct TargetMismatch {
+  double cost = 0;
+  int statistics = 0;                ///< how many were compared
+  std::vector<std::string> outside;  ///< "name sim/real" of those with e > 1
+};
+inline constexpr double kSmallCorrelation = 0.2, kSmallCorrelationTol = 0.05;
+[[nodiscard]] TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim);
+
+/// How fit_noise_rerendered searches.
+struct RerenderFitParams {
+  int sweeps = 12;         ///< pattern-search sweeps (each 2 renders per parameter: 18)
+  std::uint64_t seed = 1;  ///< of the renders' noise draws
+  int threads = 0;         ///< OpenMP threads of each render (0: the default); any gives the same fit
+};
+/// The `two_scale` structure fitted to a recording by simulation: `frames` (with their
+/// statistics `stats`, and `shape`, as for fit_noise) are first fitted with the one-field
+/// model (fit_noise), then each frame's surface is cast once (depth_surface_mesh, that
+/// fit's lateral jitter and projector) and a pattern search over the axial a and c (one
+/// scale), k_theta, the pixel-scale field's widths along rows and columns,
+/// the low field's widths and share (on a 2 px grid), dropouts.max_incidence and the hole
+/// rate (a scale) re-applies the noise model to the casts and minimizes
+/// target_mismatch(stats, their statistics). Everything else is the one-field fit's. Deterministic: the same frames and params give the same fit for any thread
+/// count. The notes add the start, the final cost and what stays outside the band. Throws
+/// as fit_noise and depth_surface_mesh do, and std::invalid_argument for sweeps < 0.
+[[nodiscard]] NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames,
+                                            const io::Intrinsics& intrinsics,
+                                            const DepthStats& stats, const DepthStats* shape,
+                                            const NoiseParams& start,
+                                            const RerenderFitParams& params = {});
 
 }  // namespace linksight::sim

@@ -54,7 +54,7 @@ class SensorNoise {
   // Correlated axial noise, set at set-up: the pixel-scale term's kernels along rows and
   // columns, and the low-frequency term's (empty when it is off).
   std::vector<float> rows_kernel_, cols_kernel_, low_rows_kernel_, low_cols_kernel_;
-  std::vector<float> white_, blurred_, field_;  // their per-frame buffers
+  std::vector<float> white_, blurred_, field_, low_field_;  // their per-frame buffers
   std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
   std::vector<std::uint16_t> steps_;          // the reported depth, for edges.drop_steps
   std::vector<int> blob_;                     // the hole being grown
