@@ -111,8 +111,8 @@ BENCHMARK_CAPTURE(BM_SensorFrame, default_truth_matern, "default.yaml",
 BENCHMARK_CAPTURE(BM_SensorFrame, default_chain_only_matern, "default.yaml",
                   ExtractParams::Mode::truth, true, Field::matern)
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-// And with the two-scale structure: the low field's blur reaches 24 px, and each pixel
-// scales its two fields apart.
+// And with the two-scale structure: the low field (6 px on a 2 px grid) reaches 18 px, and
+// each pixel scales its two fields apart.
 BENCHMARK_CAPTURE(BM_SensorFrame, default_truth_two_scale, "default.yaml",
                   ExtractParams::Mode::truth, false, Field::two_scale)
     ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -35,6 +35,7 @@ struct CalibrateOptions {
   std::string structure = "one-field";  // sim::NoiseStructure
   std::string half = "all";             // sim::FrameHalf
   int sweeps = sim::RerenderFitParams{}.sweeps;  // two-scale's search
+  bool sweeps_given = false;
 };
 
 // The --structure values, from the structures' one list.
@@ -118,7 +119,7 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
 // reading; its median over the bin's own windows) with that shape added in quadrature [m].
 std::pair<double, double> model_read(const sim::DepthStats& s, const sim::NoiseFit& fit,
                                      const sim::DepthStats* shape, bool by_depth, std::size_t k) {
-  const double read = std::sqrt(sim::window_response(fit.params.axial, s.window).variance_factor);
+  const sim::AxialReading read(fit.params.axial, s.window);
   const sim::SigmaBin& b = (by_depth ? s.sigma_by_depth : s.sigma_by_angle)[k];
   double q = 0;
   if (shape != nullptr) {
@@ -128,7 +129,7 @@ std::pair<double, double> model_read(const sim::DepthStats& s, const sim::NoiseF
   std::vector<double> model;
   for (const auto& w : s.samples)
     if (sim::in_sigma_bin(w, b, by_depth, s.depth_bin_max_angle))
-      model.push_back(read * fit.params.axial.sigma(w.z, w.angle));
+      model.push_back(read.sigma(w.z, w.angle));
   const double m = model.empty() ? 0.0 : quantile(model, 0.5);
   return {q, std::sqrt(m * m + q * q)};
 }
@@ -249,6 +250,9 @@ int run_calibrate(const CalibrateOptions& o) {
   }
   const sim::DepthStats* shape_p = o.no_shape_correction ? nullptr : &shape;
   const sim::NoiseStructure structure = sim::parse_noise_structure(o.structure);
+  if (o.sweeps_given && structure != sim::NoiseStructure::two_scale)
+    throw io::InputError("--sweeps: only the two-scale structure searches (--structure " +
+                         o.structure + ")");
   sim::NoiseFit fit;
   if (structure == sim::NoiseStructure::two_scale) {
     sim::RerenderFitParams p;
@@ -312,14 +316,18 @@ Runner add_calibrate_noise(CLI::App& app) {
                  "one without, fitted by re-rendering the frames: minutes; docs/sensor.md)")
       ->check(CLI::IsMember(structure_names()))
       ->capture_default_str();
-  app.add_option("--sweeps", o->sweeps,
-                 "two-scale: pattern-search sweeps (each re-renders the frames 18 times)")
-      ->check(CLI::Range(0, 1000))
-      ->capture_default_str();
+  CLI::Option* sweeps =
+      app.add_option("--sweeps", o->sweeps,
+                     "two-scale: pattern-search sweeps (each re-renders the frames 18 times)")
+          ->check(CLI::Range(0, 1000))
+          ->capture_default_str();
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
-  return [o] { return run_calibrate(*o); };
+  return [o, sweeps] {
+    o->sweeps_given = sweeps->count() > 0;
+    return run_calibrate(*o);
+  };
 }
 
 }  // namespace linksight::cli

@@ -1693,6 +1693,8 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
   expect_refused("calibrate-noise --structure two-scale --sweeps -1 --input " +
                      (real / "frames").string() + k,
                  "--sweeps");
+  expect_refused("calibrate-noise --sweeps 3 --input " + (real / "frames").string() + k,
+                 "--sweeps: only the two-scale structure searches (--structure one-field)");
   // Intrinsics that do not match the frames.
   io::Intrinsics small;
   small.width = 32;

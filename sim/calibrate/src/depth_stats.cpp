@@ -690,6 +690,21 @@ WindowResponse window_response(const AxialNoise& axial, int window) {
   return m.response(m.sums(axial));
 }
 
+AxialReading::AxialReading(const AxialNoise& axial, int window) : axial_(axial) {
+  mix_ = window_response(axial, window).variance_factor;
+  AxialNoise pixel = axial;
+  pixel.low_share = 0;
+  pixel_ = window_response(pixel, window).variance_factor;
+}
+
+double AxialReading::sigma(double z, double theta) const {
+  const AxialNoise::Point p = axial_.point(z, theta);
+  const double s = axial_.sigma(p);
+  if (axial_.low_angle_term || !(axial_.low_share > 0)) return std::sqrt(mix_) * s;
+  const double base = axial_.a + axial_.c * p.z * p.z, t = s - base;
+  return std::sqrt(base * base * mix_ + t * t * pixel_);
+}
+
 SurfaceRender render_surface(const io::DepthImage& depth, const io::Intrinsics& K,
                              const NoiseParams& noise, std::uint64_t seed, std::uint64_t frame,
                              const DepthSurfaceParams& surface) {

@@ -36,13 +36,18 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
     if (!(r > 0)) return;
     add(name, std::abs(std::log(std::max(s, 1e-9) / r)) / band, r, s);
   };
+  // A bin the camera fills and the simulation leaves (nearly) empty counts as a simulation
+  // that reads nothing there, as far off as can be: a model must not lower its cost by
+  // losing the windows that would measure it (a steeper incidence cut-off can).
+  // kMinSimWindows, not 10: the simulation's count moves with its draws.
   const auto bins = [&](const std::vector<SigmaBin>& r, const std::vector<SigmaBin>& s,
                         const std::string& what, double unit) {
-    for (std::size_t b = 0; b < r.size() && b < s.size(); ++b) {
-      if (r[b].windows < 10 || s[b].windows < 10) continue;
+    for (std::size_t b = 0; b < r.size(); ++b) {
+      if (r[b].windows < 10) continue;
+      const bool seen = b < s.size() && s[b].windows >= kMinSimWindows;
       ratio(what + " " + std::to_string(static_cast<int>(std::lround(r[b].lo * unit))) + "-" +
                 std::to_string(static_cast<int>(std::lround(r[b].hi * unit))),
-            r[b].sigma, s[b].sigma);
+            r[b].sigma, seen ? s[b].sigma : 0.0);
     }
   };
   bins(real.sigma_by_depth, sim.sigma_by_depth, "sigma z_cm", 100);
@@ -163,13 +168,14 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
   int evaluations = 0;
   const auto mismatch = [&](const Vec& x) {
     ++evaluations;
-    SensorNoise noise(candidate(base, x), camera);
-    for (std::size_t f = 0; f < casts.size(); ++f)
-      noise.apply(casts[f].input(), params.seed, f, params.threads, images[f], depth_m);
     try {
+      SensorNoise noise(candidate(base, x), camera);
+      for (std::size_t f = 0; f < casts.size(); ++f)
+        noise.apply(casts[f].input(), params.seed, f, params.threads, images[f], depth_m);
       return target_mismatch(stats, depth_stats(images, K));
     } catch (const std::invalid_argument&) {
-      TargetMismatch none;  // too few windows left: not a candidate
+      // Out of the model's ranges, or too few windows left: not a candidate.
+      TargetMismatch none;
       none.cost = std::numeric_limits<double>::infinity();
       return none;
     }
@@ -179,8 +185,8 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
   for (int d = 0; d < kParams; ++d) x[d] = std::clamp(x[d], kLo[d], kHi[d]);
   TargetMismatch best = mismatch(x);
   const double start_cost = best.cost;
-  // A pattern search: each parameter a step either way, the first improvement kept; a
-  // sweep without one halves the steps.
+  // A pattern search: each parameter a step down and then up, every step that lowers the
+  // cost taken at once (the next tries start from it); a sweep without one halves the steps.
   Vec step = kStep;
   for (int sweep = 0; sweep < params.sweeps; ++sweep) {
     bool moved = false;

@@ -58,10 +58,10 @@ void NoiseParams::validate() const {
   if (axial.low_share > 0 && axial.low_stride_px > 1)
     for (const auto& [key, w] : {std::pair{"axial.low_rows_px", axial.low_rows_px},
                                  std::pair{"axial.low_cols_px", axial.low_cols_px}})
-      if (w < axial.low_stride_px)
+      if (w < 2 * axial.low_stride_px)
         fields::fail("noise", key, w,
-                     "must be >= low_stride_px (" + std::to_string(axial.low_stride_px) +
-                         "): the grid would undersample the field");
+                     "must be >= 2 x low_stride_px (" + std::to_string(axial.low_stride_px) +
+                         "): a coarser grid shows in the field");
   if (axial.correlation_cols_px > 0 && !(axial.correlation_px > 0))
     fields::fail("noise", "axial.correlation_cols_px", axial.correlation_cols_px,
                  "needs correlation_px > 0 (a white pixel-scale term has no width)");

@@ -191,8 +191,9 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
   // Correlated axial noise: a white field over the box of hit pixels (plus the kernels'
   // reach), blurred row then column by normalized Gaussians. Each white value depends on
   // its pixel's key only, so the field is the same for any thread count. With a
-  // low-frequency term, a second field (its own stream) is blurred by its kernels and the
-  // two are mixed by their shares of the variance.
+  // low-frequency term, a second field (its own stream; on a grid with low_stride_px > 1)
+  // is blurred by its kernels and the two are mixed by their shares of the variance, or,
+  // without the angle term in the low field, kept apart and scaled per pixel.
   const AxialNoise& ax = noise.axial;
   const bool fine = ax.enabled && !rows_kernel_.empty();
   const bool low = ax.enabled && !low_rows_kernel_.empty();
@@ -207,7 +208,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
         }
   }
   // The field of `stream` over the box, blurred by `rows` then `cols` (white where they are
-  // empty), each pixel's value times `weight` added into field_.
+  // empty), each pixel's value times `weight` added into `field`.
   const auto add_field = [&](const std::vector<float>& rows, const std::vector<float>& cols,
                              std::uint64_t stream, float weight, std::vector<float>& field) {
     const int Ru = static_cast<int>(rows.size() / 2), Rv = static_cast<int>(cols.size() / 2);

@@ -244,11 +244,13 @@ TEST(SensorNoise, LowFieldOnAGridKeepsItsSigmaAndCorrelation) {
   EXPECT_EQ(plate_field(n, 0, kBorder, 0, 3).first, f.first);
   const NoiseParams every = two_term_noise(6.0, 8.0, 1);
   EXPECT_NE(plate_field(every, 0, kBorder).first, f.first);
-  n.axial.low_rows_px = 1.5;
+  n.axial.low_rows_px = 3.5;
   const std::string e =
       test::error_of<std::invalid_argument>([&] { (void)SensorNoise(n, CameraParams{}); });
-  EXPECT_NE(e.find("noise.axial.low_rows_px = 1.5"), std::string::npos) << e;
-  EXPECT_NE(e.find("must be >= low_stride_px (2)"), std::string::npos) << e;
+  EXPECT_NE(e.find("noise.axial.low_rows_px = 3.5"), std::string::npos) << e;
+  EXPECT_NE(e.find("must be >= 2 x low_stride_px (2)"), std::string::npos) << e;
+  n.axial.low_rows_px = 4;
+  EXPECT_NO_THROW((void)SensorNoise(n, CameraParams{}));
 }
 
 // The low-frequency field without the angle term (`low_angle_term: false`, issue 20): at
@@ -257,7 +259,7 @@ TEST(SensorNoise, LowFieldOnAGridKeepsItsSigmaAndCorrelation) {
 // sqrt(s) a, so sigma is sqrt(a^2 + t^2) and the lag-L correlation
 // ((1 - s) a^2 + t^2) rho_pixel(L) + s a^2 rho_low(L), over sigma^2. With the term (the
 // default) sigma is a + t and the shares are those at normal incidence. The same for any
-// thread count.
+// thread count, and with the low field on a 2 px grid.
 TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
   constexpr double kSigma = 0.002;  // a [m]
   constexpr double kShare = 0.8, kPixelPx = 1.0, kLowPx = 6.0;
@@ -276,9 +278,11 @@ TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
   ASSERT_NEAR(n.axial.sigma(0.6, theta), 2 * kSigma, 1e-12);
   const auto rho = [](int l, double w) { return std::exp(-l * l / (4 * w * w)); };
   constexpr int kLags = 4, kBorder = 20;  // the low field's reach, 3 x 6 px
-  for (const bool with_angle : {true, false}) {
+  for (const auto& [with_angle, stride] : {std::pair{true, 1}, std::pair{false, 1}, std::pair{false, 2}}) {
     n.axial.low_angle_term = with_angle;
-    SCOPED_TRACE(with_angle ? "low_angle_term true" : "low_angle_term false");
+    n.axial.low_stride_px = stride;
+    SCOPED_TRACE(std::string(with_angle ? "low_angle_term true" : "low_angle_term false") +
+                 ", low_stride_px " + std::to_string(stride));
     const PlateField flat = plate_field(n, kLags, kBorder);
     EXPECT_NEAR(flat.sigma, kSigma, kStageSigmaRelTol * kSigma);
     const PlateField steep = plate_field(n, kLags, kBorder, theta, 1);

@@ -212,6 +212,21 @@ struct WindowResponse {
 /// The one-field isotropic model of width `correlation_px` (0: white).
 [[nodiscard]] WindowResponse window_response(double correlation_px, int window = 15);
 
+/// What a plane fit in windows of `window` px reads of `axial`'s noise at depth z [m] and
+/// incidence theta [rad]: sigma_z times the square root of window_response's variance
+/// factor; with low_angle_term false, sqrt((a + c z^2)^2 F + t^2 F_pixel), the angle term
+/// t read as the pixel-scale field's alone (F the two fields' factor, F_pixel the pixel
+/// field's). The low field's grid (low_stride_px) is read as the Gaussian it samples [m].
+class AxialReading {
+ public:
+  explicit AxialReading(const AxialNoise& axial, int window = 15);
+  [[nodiscard]] double sigma(double z, double theta) const;
+
+ private:
+  AxialNoise axial_;
+  double mix_ = 1, pixel_ = 1;  // variance factors: both fields, the pixel-scale one alone
+};
+
 /// The noise model's parameters fitted to measured statistics, and what could not be.
 struct NoiseFit {
   NoiseParams params;              ///< `start` with every term the data determine replaced
@@ -270,8 +285,8 @@ inline constexpr NoiseStructure kNoiseStructures[] = {NoiseStructure::one_field,
 /// under kSmallCorrelation in magnitude, |sim - real| / kSmallCorrelationTol; `cost` sums
 /// e^2 (so a fit centres every statistic in its band, rather than stopping inside it, which
 /// held out leaves less at its edges) over: the plane-fit sigma per depth
-/// bin and per angle bin and the quadratic-fit sigma per angle bin (bins with 10 windows on
-/// both sides), the correlation along rows and along columns at lags 1-4, the
+/// bin and per angle bin and the quadratic-fit sigma per angle bin (bins with 10 windows in
+/// the camera's frames; see kMinSimWindows), the correlation along rows and along columns at lags 1-4, the
 /// quadratic-beats-plane share, the first and second pixel past the near surface invalid
 /// and the median band width on the side away from the projector (where the camera's frames
 /// decide a side; on the same image side where the simulation's do not), the flying rate
@@ -282,6 +297,10 @@ struct TargetMismatch {
   std::vector<std::string> outside;  ///< "name sim/real" of those with e > 1
 };
 inline constexpr double kSmallCorrelation = 0.2, kSmallCorrelationTol = 0.05;
+/// A sigma bin counts where the camera's frames hold 10 windows; the simulation's reading
+/// is its median from this many, and under it the bin counts as read 0 (a model must not
+/// lower its cost by losing the windows that would measure it).
+inline constexpr int kMinSimWindows = 5;
 [[nodiscard]] TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim);
 
 /// How fit_noise_rerendered searches.

@@ -60,16 +60,17 @@ struct AxialNoise {
   double low_rows_px = 6;  ///< [px]
   double low_cols_px = 6;  ///< [px]
   /// Whether the low-frequency term takes its share of the whole sigma_z (true, as the term
-  /// was first made) or of a + c z^2 only (false): then the angle term is the pixel-scale
-  /// field's alone, sigma_low = sqrt(low_share) (a + c z^2) and sigma_pixel =
-  /// sqrt(sigma_z^2 - sigma_low^2), so the noise gets rougher towards grazing incidence as
-  /// the camera's does (issue 20). The same at normal incidence either way.
+  /// was first made) or of a + c z^2 only (false): then sigma_low = sqrt(low_share) (a + c
+  /// z^2) and the pixel-scale field carries the angle term t in quadrature, sqrt((1 -
+  /// low_share) (a + c z^2)^2 + t^2), so the noise gets rougher towards grazing incidence as
+  /// the camera's does (issue 20). The pixel's sigma is then sqrt((a + c z^2)^2 + t^2), not
+  /// sigma() (= a + c z^2 + t); the same at normal incidence either way.
   bool low_angle_term = true;
   /// The low-frequency field drawn on a grid of this many pixels and interpolated
   /// bilinearly (1: at every pixel, as the term was first made). A stride of 2 costs a
-  /// quarter of the draws and an eighth of the blur; for widths of 3 strides or more its
-  /// variance between grid nodes stays within 2% of 1 and its covariance within 0.01 of the
-  /// Gaussian's. The widths must be at least the stride.
+  /// quarter of the draws and about an eighth of the blur. Between grid nodes the variance
+  /// dips: at a cell's centre to 0.97 of 1 for widths of 3 strides, 0.94 for 2 (the least
+  /// accepted); the correlation stays within 0.01 of the Gaussian's from 3 strides.
   int low_stride_px = 1;
   /// The pixel-scale term's widths along rows and columns [px] (0: white).
   [[nodiscard]] double rows_px() const { return correlation_px; }
