@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <numbers>
 #include <random>
 #include <string>
 #include <tuple>
@@ -744,6 +745,31 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   EXPECT_NE(test::error_of<std::invalid_argument>([] { (void)parse_noise_structure("cauchy"); })
                 .find("'cauchy': expected one-field, two-term, matern52 or two-scale"),
             std::string::npos);
+}
+
+// AxialReading, what calibrate-noise's report draws for a block: the whole sigma through
+// the fields' window factor, except that without the low field's angle term (two-scale)
+// the angle term is read through the pixel-scale field's factor alone, which keeps more of
+// it than the mix does.
+TEST(DepthStats, AxialReadingReadsTheAngleTermAsThePixelFields) {
+  AxialNoise ax;
+  ax.a = 0.0005;
+  ax.c = 0;
+  ax.k_theta = ax.a * std::sqrt(0.6) / 4;  // t = a at 60 degrees and 0.6 m
+  ax.correlation_px = 1.5;
+  ax.low_share = 0.9;
+  ax.low_rows_px = 6;
+  ax.low_cols_px = 6;
+  const double theta = std::numbers::pi / 3;
+  const double mix = window_response(ax).variance_factor;
+  AxialNoise pixel = ax;
+  pixel.low_share = 0;
+  const double pix = window_response(pixel).variance_factor;
+  ASSERT_GT(pix, 2 * mix);  // a plane fit takes up most of the low field
+  EXPECT_NEAR(AxialReading(ax).sigma(0.6, theta), std::sqrt(mix) * 2 * ax.a, 1e-12);
+  ax.low_angle_term = false;
+  EXPECT_NEAR(AxialReading(ax).sigma(0.6, 0.0), std::sqrt(mix) * ax.a, 1e-12);
+  EXPECT_NEAR(AxialReading(ax).sigma(0.6, theta), ax.a * std::sqrt(mix + pix), 1e-12);
 }
 
 // window_response sums the fields' covariance as a Kronecker product; the dense sums of
