@@ -701,7 +701,7 @@ double AxialReading::sigma(double z, double theta) const {
   const AxialNoise::Point p = axial_.point(z, theta);
   const double s = axial_.sigma(p);
   if (axial_.low_angle_term || !(axial_.low_share > 0)) return std::sqrt(mix_) * s;
-  const double base = axial_.a + axial_.c * p.z * p.z, t = s - base;
+  const double base = axial_.base(p), t = s - base;
   return std::sqrt(base * base * mix_ + t * t * pixel_);
 }
 

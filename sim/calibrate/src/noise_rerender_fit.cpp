@@ -186,7 +186,8 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
   TargetMismatch best = mismatch(x);
   const double start_cost = best.cost;
   // A pattern search: each parameter a step down and then up, every step that lowers the
-  // cost taken at once (the next tries start from it); a sweep without one halves the steps.
+  // cost taken at once (the next tries start from it, and a step down taken skips the step
+  // up); a sweep without one halves the steps.
   Vec step = kStep;
   for (int sweep = 0; sweep < params.sweeps; ++sweep) {
     bool moved = false;
@@ -195,8 +196,10 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
         Vec y = x;
         y[d] = std::clamp(y[d] + sign * step[d], kLo[d], kHi[d]);
         if (y[d] == x[d]) continue;
-        if (TargetMismatch m = mismatch(y); m.cost < best.cost)
+        if (TargetMismatch m = mismatch(y); m.cost < best.cost) {
           best = std::move(m), x = y, moved = true;
+          break;  // a step up from here is the point just left, which cost more
+        }
       }
     if (!moved)
       for (double& s : step) s /= 2;

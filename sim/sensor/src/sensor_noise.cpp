@@ -207,6 +207,26 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
           bv0 = std::min(bv0, v), bv1 = std::max(bv1, v);
         }
   }
+  // White noise over the nodes [x0, x1] x [y0, y1] of a lattice `stride` nodes wide, node
+  // (x, y) drawn from `stream` with key index y * stride + x (so its value depends on the
+  // node alone, not on the box), then blurred by `rows` and `cols` unless they are empty.
+  // Leaves the result in white_, (x1 - x0 + 1) values a row.
+  const auto draw_blurred = [&](int x0, int x1, int y0, int y1, int stride, std::uint64_t stream,
+                                const std::vector<float>& rows, const std::vector<float>& cols) {
+    const int w = x1 - x0 + 1, h = y1 - y0 + 1;
+    // Every value is written below (and by the blurs): no zeroing first.
+    white_.resize(static_cast<std::size_t>(w) * h);
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x)
+        white_[static_cast<std::size_t>(y - y0) * w + (x - x0)] = static_cast<float>(
+            normal(pixel_key(frame_seed, static_cast<std::size_t>(y) * stride + x), stream));
+    if (!rows.empty()) {
+      blurred_.resize(static_cast<std::size_t>(w) * h);
+      blur_rows(white_, blurred_, w, h, rows, threads);
+      blur_columns(blurred_, white_, w, h, cols, threads);
+    }
+  };
   // The field of `stream` over the box, blurred by `rows` then `cols` (white where they are
   // empty), each pixel's value times `weight` added into `field`.
   const auto add_field = [&](const std::vector<float>& rows, const std::vector<float>& cols,
@@ -215,18 +235,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
     const int fu0 = std::max(0, bu0 - Ru), fu1 = std::min(W - 1, bu1 + Ru);
     const int fv0 = std::max(0, bv0 - Rv), fv1 = std::min(H - 1, bv1 + Rv);
     const int fw = fu1 - fu0 + 1, fh = fv1 - fv0 + 1;
-    // Every value is written below (and by the blurs): no zeroing first.
-    white_.resize(static_cast<std::size_t>(fw) * fh);
-#pragma omp parallel for schedule(static) num_threads(threads)
-    for (int v = fv0; v <= fv1; ++v)
-      for (int u = fu0; u <= fu1; ++u)
-        white_[static_cast<std::size_t>(v - fv0) * fw + (u - fu0)] = static_cast<float>(
-            normal(pixel_key(frame_seed, static_cast<std::size_t>(v) * W + u), stream));
-    if (!rows.empty()) {
-      blurred_.resize(static_cast<std::size_t>(fw) * fh);
-      blur_rows(white_, blurred_, fw, fh, rows, threads);
-      blur_columns(blurred_, white_, fw, fh, cols, threads);
-    }
+    draw_blurred(fu0, fu1, fv0, fv1, W, stream, rows, cols);
     // (weight 1 into the zeroed field_ is the field itself, bit for bit: the one-field model)
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int y = 0; y < fh; ++y) {
@@ -246,16 +255,8 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
     const int Ru = static_cast<int>(rows.size() / 2), Rv = static_cast<int>(cols.size() / 2);
     const int gx0 = std::max(0, bu0 / S - Ru), gx1 = std::min(GW - 1, bu1 / S + 1 + Ru);
     const int gy0 = std::max(0, bv0 / S - Rv), gy1 = std::min(GH - 1, bv1 / S + 1 + Rv);
-    const int gw = gx1 - gx0 + 1, gh = gy1 - gy0 + 1;
-    white_.resize(static_cast<std::size_t>(gw) * gh);
-#pragma omp parallel for schedule(static) num_threads(threads)
-    for (int gy = gy0; gy <= gy1; ++gy)
-      for (int gx = gx0; gx <= gx1; ++gx)
-        white_[static_cast<std::size_t>(gy - gy0) * gw + (gx - gx0)] = static_cast<float>(
-            normal(pixel_key(frame_seed, static_cast<std::size_t>(gy) * GW + gx), kAxialLowGrid));
-    blurred_.resize(static_cast<std::size_t>(gw) * gh);
-    blur_rows(white_, blurred_, gw, gh, rows, threads);
-    blur_columns(blurred_, white_, gw, gh, cols, threads);
+    const int gw = gx1 - gx0 + 1;
+    draw_blurred(gx0, gx1, gy0, gy1, GW, kAxialLowGrid, rows, cols);
     const float step = 1.0F / static_cast<float>(S);
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int v = bv0; v <= bv1; ++v) {
@@ -355,7 +356,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       }
       if (split) {
         const AxialNoise::Point p = ax.point(z0, in.incidence[pix]);
-        const double base = ax.a + ax.c * p.z * p.z, angle = ax.sigma(p) - base;
+        const double base = ax.base(p), angle = ax.sigma(p) - base;
         z += std::sqrt((1 - ax.low_share) * base * base + angle * angle) * static_cast<double>(field_[pix]) +
              std::sqrt(ax.low_share) * base * static_cast<double>(low_field_[pix]);
       } else if (noise.axial.enabled) {

@@ -88,8 +88,11 @@ struct AxialNoise {
   };
   [[nodiscard]] Point point(double z, double theta) const;
   [[nodiscard]] double sigma(const Point& p) const {
-    return a + c * p.z * p.z + k_theta / p.root_z * p.q * p.q;
+    return base(p) + k_theta / p.root_z * p.q * p.q;
   }
+  /// sigma without its angle term, a + c z^2 [m]: what the low-frequency field scales when
+  /// low_angle_term is false.
+  [[nodiscard]] double base(const Point& p) const { return a + c * p.z * p.z; }
   /// The keys of the scene's `noise.axial` block (fields.hpp).
   template <class Archive>
   void fields(Archive& ar) {
