@@ -575,7 +575,7 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   ASSERT_NE(at, std::string::npos) << note;
   double cost = -1, start = -1;
   ASSERT_EQ(std::sscanf(note.c_str() + at, "target mismatch %lf (start %lf)", &cost, &start), 2) << note;
-  EXPECT_LT(cost, start) << "one sweep of 18 renders found nothing better than the start";
+  EXPECT_LT(cost, start) << "one sweep of up to 18 renders found nothing better than the start";
   for (const std::string& n : one.notes)
     EXPECT_EQ(n.find("max_incidence, min_signal kept"), std::string::npos) << n;
   EXPECT_NE(test::error_of<std::invalid_argument>(
