@@ -13,15 +13,19 @@
 namespace {
 using namespace linksight::sim;
 
-// The axial field: the preset's, two anisotropic fields, one Matern-5/2 field of ranges
-// 7 x 8 px, or the two-scale structure that calibrate-noise fits to the shared SR305 frames
-// (issue 20; docs/sensor.md): what each costs.
+// The noise: the one-field `sr300-one-field` preset (the camera before issue 20, the
+// baseline of the ratios in bench/README.md), two anisotropic fields or one Matern-5/2
+// field of ranges 7 x 8 px on top of it, or the two-scale `sr300` preset that
+// calibrate-noise fits to the shared SR305 frames (issue 20; docs/sensor.md): what each
+// costs.
 enum class Field { preset, two_terms, matern, two_scale };
 
 void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractParams::Mode mode,
                     bool chain_only = false, Field field = Field::preset) {
   Scene scene = load_scene(std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file);
   scene.segmentation.mode = mode;
+  // (the scenes name the preset and nothing else of the noise)
+  scene.noise = field == Field::two_scale ? NoiseParams::sr300() : NoiseParams::sr300_one_field();
   if (field == Field::two_terms) {
     scene.noise.axial.correlation_cols_px = 2.5;
     scene.noise.axial.low_share = 0.5;
@@ -31,21 +35,6 @@ void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractPara
     scene.noise.axial.kernel = AxialKernel::matern52;
     scene.noise.axial.correlation_px = 7;
     scene.noise.axial.correlation_cols_px = 8;
-  } else if (field == Field::two_scale) {
-    // `calibrate-noise --structure two-scale` on all 11 frames (2026-11-27), rounded.
-    AxialNoise& ax = scene.noise.axial;
-    ax.a = 0.000149;
-    ax.c = 0.00248;
-    ax.k_theta = 0.00058;
-    ax.correlation_px = 1.9;
-    ax.correlation_cols_px = 2.55;
-    ax.low_share = 0.975;
-    ax.low_rows_px = 6;
-    ax.low_cols_px = 6;
-    ax.low_angle_term = false;
-    ax.low_stride_px = 2;
-    scene.noise.dropouts.max_incidence = 71.3 * 3.14159265358979323846 / 180;
-    scene.noise.dropouts.hole_rate = 52;
   }
   auto world = make_world(scene);
   const double t = 2.3;

@@ -258,12 +258,12 @@ int run_calibrate(const CalibrateOptions& o) {
     sim::RerenderFitParams p;
     p.sweeps = o.sweeps;
     try {
-      fit = sim::fit_noise_rerendered(frames, K, stats, shape_p, sim::NoiseParams::sr300(), p);
+      fit = sim::fit_noise_rerendered(frames, K, stats, shape_p, sim::NoiseParams::sr300_one_field(), p);
     } catch (const std::invalid_argument& e) {
       throw io::InputError(o.input + ": re-rendering its surfaces: " + e.what());
     }
   } else {
-    fit = sim::fit_noise(stats, sim::NoiseParams::sr300(), shape_p, structure);
+    fit = sim::fit_noise(stats, sim::NoiseParams::sr300_one_field(), shape_p, structure);
   }
   io::StagedFiles out;
   out.open(o.out) << noise_yaml(fit, o.input, stats.frames, o.half);
@@ -309,7 +309,7 @@ Runner add_calibrate_noise(CLI::App& app) {
                "fit sigma as measured, without subtracting what the surfaces' own shape puts "
                "into the plane fit (estimated by re-rendering them without noise)");
   app.add_option("--structure", o->structure,
-                 "the axial field fitted: one-field (one isotropic width, the sr300 preset's) "
+                 "the axial field fitted: one-field (one isotropic width, the sr300-one-field preset's) "
                  "or two-term (a pixel-scale and a low-frequency field, each with row and "
                  "column widths) or matern52 (one Matern-5/2 field with row and column ranges) "
                  "or two-scale (a pixel-scale field with the angle term and a low-frequency "

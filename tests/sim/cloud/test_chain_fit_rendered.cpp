@@ -1,8 +1,9 @@
 // chain-fit on rendered SR300 frames (issue 17's tests): straight, C and S links at 0.4,
 // 0.7 and 1.0 m, rendered by the simulated camera and extracted by label, tracked on
-// every back end. Noise-free frames give the centres within 0.05 mm, sr300 frames within
-// 0.5 mm on average; the pitch holds to 1e-6 m in every frame; every back end gives the
-// serial reference's nodes.
+// every back end. Noise-free frames give the centres within 0.05 mm, sr300-one-field frames
+// (the model issue 17's targets were set on) within 0.5 mm on average, sr300 (two-scale,
+// issue 20) frames within the bands below; the pitch holds to 1e-6 m in every frame; every
+// back end gives the serial reference's nodes.
 #include <gtest/gtest.h>
 
 #include <map>
@@ -17,7 +18,7 @@ namespace linksight::sim {
 namespace {
 
 constexpr double kNoiseFreeBand = 0.05e-3;  // [m]: issue 17's noise-free target (mean)
-constexpr double kSr300Band = 0.5e-3;       // [m]: issue 17's sr300 target (mean)
+constexpr double kSr300Band = 0.5e-3;       // [m]: issue 17's sr300 target (mean), one-field
 // At 1.0 m issue 17's 0.5 mm is missed, and this band says so: the sr300's depth noise
 // grows with the square of the range (about 0.9 mm at 1 m against 0.3 mm at 0.6 m) and a
 // ball there has about 180 points, so a single frame's centres scatter by 0.5-1 mm
@@ -26,6 +27,17 @@ constexpr double kSr300Band = 0.5e-3;       // [m]: issue 17's sr300 target (mea
 // over frames) or the base prior.
 constexpr double kSr300FarBand = 1.5e-3;    // [m]
 constexpr double kFar = 0.95;               // [m]: from here kSr300FarBand applies
+// The sr300 preset since issue 20 (two-scale): issue 17's targets are missed, and these
+// bands say by how much. 97.5% of its a + c z^2 is a field smooth over about 6 px (9 mm
+// at 0.7 m, over half a ball's radius): it moves a ball's whole cap, which no fit of one
+// frame averages out, so the centres scatter by about the field's sigma (0.55 mm at
+// 0.4 m, 1.4 mm at 0.7 m, 2.6 mm at 1 m). Measured mean node error, frame 2, straight /
+// C / S: 0.59 / 0.56 / 0.40 mm at 0.4 m, 1.16 / 1.16 / 1.15 mm at 0.7 m, 2.23 / 3.14 /
+// 2.08 mm at 1 m. Bands: a third above the worst. How much of that field the real camera
+// has, the shared frames cannot settle (docs/sensor.md); sr300-one-field keeps issue 17's
+// bands above.
+constexpr double kTwoScaleBand = 1.6e-3;     // [m]
+constexpr double kTwoScaleFarBand = 4.2e-3;  // [m]
 constexpr double kPitchTolerance = 1e-6;    // [m]: issue 17
 constexpr double kBackendTolerance = 1e-6;  // [m]: the back-end equivalence rule
 constexpr int kFrames = 3;                  // the first initializes, the others track
@@ -43,6 +55,10 @@ std::vector<Eigen::Isometry3d> frames_of(const Nodes& nodes_W) {
   return X;
 }
 
+// The camera: ideal, the one-field sr300 model issue 17's targets were set on
+// (`sr300-one-field`), and the two-scale `sr300` preset (issue 20).
+enum class Noise { off, one_field, two_scale };
+
 struct Rendered {
   std::vector<Cloud> clouds;  // one per frame [m, C]
   Nodes truth_C;
@@ -50,7 +66,7 @@ struct Rendered {
 
 // The link bent in a vertical plane, seen from `distance` [m] in front of its middle and
 // a little above, as a camera on a robot would see it.
-Rendered render(ChainShape shape, double distance, bool noisy) {
+Rendered render(ChainShape shape, double distance, Noise noise) {
   const ComponentGeometry g;
   Eigen::Isometry3d X_WB = Eigen::Isometry3d::Identity();
   X_WB.translation() = Eigen::Vector3d(0.0, 0.0, 0.5);
@@ -61,7 +77,9 @@ Rendered render(ChainShape shape, double distance, bool noisy) {
   Eigen::Vector3d middle = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& q : nodes_W) middle += q / static_cast<double>(nodes_W.size());
   SensorParams p;
-  p.noise = noisy ? NoiseParams::sr300() : NoiseParams::off();
+  p.noise = noise == Noise::off         ? NoiseParams::off()
+            : noise == Noise::one_field ? NoiseParams::sr300_one_field()
+                                        : NoiseParams::sr300();
   p.camera.X_WC = look_at(middle + distance * Eigen::Vector3d(0, -0.95, 0.31).normalized(), middle);
   Sensor sensor(p, g, {}, {});
   Rendered r;
@@ -75,11 +93,11 @@ Rendered render(ChainShape shape, double distance, bool noisy) {
 }
 
 // Each (shape, distance, noise) rendered once for every back end.
-const Rendered& rendered(ChainShape shape, double distance, bool noisy) {
-  static std::map<std::tuple<ChainShape, double, bool>, Rendered> cache;
-  const auto key = std::make_tuple(shape, distance, noisy);
+const Rendered& rendered(ChainShape shape, double distance, Noise noise) {
+  static std::map<std::tuple<ChainShape, double, Noise>, Rendered> cache;
+  const auto key = std::make_tuple(shape, distance, noise);
   auto it = cache.find(key);
-  if (it == cache.end()) it = cache.emplace(key, render(shape, distance, noisy)).first;
+  if (it == cache.end()) it = cache.emplace(key, render(shape, distance, noise)).first;
   return it->second;
 }
 
@@ -105,9 +123,11 @@ TEST_P(ChainFitRendered, CentresPitchAndTheSerialReference) {
   const auto [backend, shape, distance] = GetParam();
   LINKSIGHT_SKIP_IF_UNBUILT(backend);
   const ComponentGeometry g;
-  for (const bool noisy : {false, true}) {
-    SCOPED_TRACE(noisy ? "sr300" : "noise-free");
-    const Rendered& r = rendered(shape, distance, noisy);
+  for (const Noise noise : {Noise::off, Noise::one_field, Noise::two_scale}) {
+    SCOPED_TRACE(noise == Noise::off         ? "noise-free"
+                 : noise == Noise::one_field ? "sr300-one-field"
+                                             : "sr300");
+    const Rendered& r = rendered(shape, distance, noise);
     ASSERT_GT(r.clouds.front().size(), 1000u);  // the link is in view
     const std::vector<FrameResult> results = track(r, backend);
     const std::vector<FrameResult> reference = track(r, test::BackendCase{});
@@ -122,7 +142,10 @@ TEST_P(ChainFitRendered, CentresPitchAndTheSerialReference) {
             << "frame " << f << " node " << k;
     }
     const double err = mean_error(results.back().nodes, r.truth_C);
-    const double band = !noisy ? kNoiseFreeBand : distance < kFar ? kSr300Band : kSr300FarBand;
+    const double near_band = noise == Noise::one_field ? kSr300Band : kTwoScaleBand;
+    const double far_band = noise == Noise::one_field ? kSr300FarBand : kTwoScaleFarBand;
+    const double band =
+        noise == Noise::off ? kNoiseFreeBand : distance < kFar ? near_band : far_band;
     EXPECT_LT(err, band) << "mean node error " << err * 1e3 << " mm";
   }
 }

@@ -225,7 +225,8 @@ TEST(Episode, BasePriorIsTheTrueBasePoseWithOneSeededErrorPerEpisode) {
     EXPECT_NEAR((fr.truth.X_WB.translation() - fr.truth.nodes_W[0]).norm(), 0.0, 1e-6);
     const Eigen::Isometry3d expected = X_CW * fr.truth.X_WB * error;
     EXPECT_TRUE(fr.base_prior_C->isApprox(expected, 1e-12));
-    EXPECT_LT(fr.scores[0].mean_err, 0.001);
+    // (sr300's two-scale noise: 1.10-1.12 mm measured; the band was 1 mm with sr300-one-field)
+    EXPECT_LT(fr.scores[0].mean_err, 0.0015);
   }
 }
 

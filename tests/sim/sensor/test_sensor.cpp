@@ -416,6 +416,7 @@ TEST_P(SensorThreads, SameImagesForAnyThreadCount) {
   const ComponentGeometry g;
   NoiseParams noise = NoiseParams::sr300();
   noise.axial.correlation_px = GetParam();
+  noise.axial.correlation_cols_px = 0;  // (a white term has no width)
   SensorParams p = side_view(noise);
   BackgroundObject table;
   table.shape.half_extents = Eigen::Vector3d(1.0, 1.0, 0.01);

@@ -307,7 +307,7 @@ TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
 TEST(SensorNoise, TwoTermFieldOffIsTheOneFieldModel) {
   const CameraParams camera;
   const auto render = [&](const NoiseParams& n, int threads) { return plate_depth(n, 5, 2, threads); };
-  const NoiseParams one = NoiseParams::sr300();
+  const NoiseParams one = NoiseParams::sr300_one_field();
   ASSERT_EQ(one.axial.low_share, 0.0);
   ASSERT_EQ(one.axial.correlation_cols_px, 0.0);
   NoiseParams twice = one;

@@ -24,7 +24,7 @@ struct Scene {
   double duration_s = 5.0;  ///< [s]
   std::uint64_t seed = 1;
   CameraParams camera;  ///< truth and frames are sampled at camera.fps
-  NoiseParams noise;    ///< preset sr300 unless the scene says otherwise
+  NoiseParams noise = NoiseParams::sr300();  ///< preset sr300 unless the scene says otherwise
   /// The listed occluders, then the one `occlusion` generates (when its fraction > 0).
   std::vector<Occluder> occluders;
   ScreenOcclusion occlusion;  ///< as read; its occluder is already in `occluders`

@@ -104,7 +104,7 @@ struct BackgroundObject {
 
 struct SensorParams {
   CameraParams camera;
-  NoiseParams noise;
+  NoiseParams noise = NoiseParams::sr300();
   double chain_reflectance = 1.0;
   int component_segments = 96;  ///< mesh resolution of a ball: 0.01 mm sagitta at r = 15 mm
   int threads = 0;              ///< OpenMP threads; 0: the OpenMP default
