@@ -443,6 +443,43 @@ TEST(DepthStats, HeldOutFidelityOfTheOneFieldFit) {
   }
 }
 
+// The sr300 preset is calibrate-noise --structure two-scale on all 11 frames, rounded
+// (docs/sensor.md, "The sr300 preset (issue 20)"): a fit that moves away from it means the
+// preset is stale. Label fidelity-full with the held-out tests (one fit of about 35 s).
+TEST(HeldOutFidelity, TheSr300PresetIsTheTwoScaleFit) {
+  io::Intrinsics K;
+  const std::vector<io::DepthImage> frames = real_frames(K);
+  const DepthStats real = depth_stats(frames, K);
+  NoiseParams quiet = NoiseParams::off();  // as calibrate-noise's shape correction
+  quiet.quantize = true;
+  const DepthStats shape = depth_stats(rerender_surfaces(frames, K, quiet, 1), K);
+  const NoiseParams fit =
+      fit_noise_rerendered(frames, K, real, &shape, NoiseParams::sr300_one_field()).params;
+  const NoiseParams preset = NoiseParams::sr300();
+  constexpr double kPresetRelTol = 0.01;  // the preset's rounding
+  const struct {
+    const char* what;
+    double fitted, preset;
+  } terms[] = {
+      {"axial.a", fit.axial.a, preset.axial.a},
+      {"axial.c", fit.axial.c, preset.axial.c},
+      {"axial.k_theta", fit.axial.k_theta, preset.axial.k_theta},
+      {"axial.correlation_px", fit.axial.correlation_px, preset.axial.correlation_px},
+      {"axial.correlation_cols_px", fit.axial.correlation_cols_px,
+       preset.axial.correlation_cols_px},
+      {"axial.low_share", fit.axial.low_share, preset.axial.low_share},
+      {"axial.low_rows_px", fit.axial.low_rows_px, preset.axial.low_rows_px},
+      {"axial.low_cols_px", fit.axial.low_cols_px, preset.axial.low_cols_px},
+      {"dropouts.max_incidence", fit.dropouts.max_incidence, preset.dropouts.max_incidence},
+      {"dropouts.hole_rate", fit.dropouts.hole_rate, preset.dropouts.hole_rate},
+  };
+  for (const auto& t : terms)
+    EXPECT_NEAR(t.fitted, t.preset, kPresetRelTol * std::abs(t.preset)) << t.what;
+  EXPECT_EQ(fit.axial.low_angle_term, preset.axial.low_angle_term);
+  EXPECT_EQ(fit.axial.low_stride_px, preset.axial.low_stride_px);
+  EXPECT_EQ(fit.edges.drop_steps, preset.edges.drop_steps);
+}
+
 // The issue's held-out targets (issue 20), for the two-scale structure fitted by
 // re-rendering (fit_noise_rerendered) on one half and compared on the other: plane-fit sigma
 // per depth and per angle bin and quadratic-fit sigma per angle bin (bins the fit half
