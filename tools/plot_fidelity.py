@@ -3,8 +3,8 @@
 `linksight calibrate-noise --report` (the recording against the fitted model).
 
 Reads DIR/fidelity.json or DIR/calibration.json ({"series": {label: statistics}}), writes
-DIR/figures/{sigma_depth,sigma_angle,shadow_band,holes}.png; a series without a statistic
-is left out of that figure.
+DIR/figures/{sigma_depth,sigma_angle,shadow_band,holes,structure}.png; a series without a
+statistic is left out of that figure, and a figure no series has is not drawn.
 Usage: plot_fidelity.py DIR
 """
 import json
@@ -38,7 +38,8 @@ def main(out_dir):
     series = list(j["series"].items())
     figures = os.path.join(out_dir, "figures")
     os.makedirs(figures, exist_ok=True)
-    looks = [dict(color="black", marker="o"), dict(color="tab:orange", marker="s")]
+    looks = [dict(color="black", marker="o"), dict(color="tab:orange", marker="s"),
+             dict(color="tab:blue", marker="^"), dict(color="tab:green", marker="v")]
     style = {label: looks[i % len(looks)] for i, (label, _) in enumerate(series)}
 
     def sigma(key, xlabel, name, title):
@@ -58,6 +59,35 @@ def main(out_dir):
           "Axial noise against depth (incidence < 30 deg)")
     sigma("sigma_by_angle", "incidence [deg] (bin median)", "sigma_angle.png",
           "Axial noise against incidence")
+
+    # The structure (issue 20): what a quadratic leaves by incidence, and how far the
+    # residual stays correlated along rows (solid) and columns (dashed).
+    if any("sigma_quad_by_angle" in s or "correlation_rows" in s for _, s in series):
+        fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+        for label, s in series:
+            pts = s.get("sigma_quad_by_angle", [])
+            if pts:
+                left.plot([p["centre"] for p in pts], [p["sigma_mm"] for p in pts], label=label,
+                          **style[label])
+            for key, line in (("correlation_rows", "-"), ("correlation_cols", "--")):
+                values = s.get(key)
+                if not values:
+                    continue
+                lag = [i + 1 for i, v in enumerate(values) if v is not None]
+                right.plot(lag, [v for v in values if v is not None], linestyle=line,
+                           label=f"{label}, {key.split('_')[1]}", **style[label])
+        left.set_xlabel("incidence [deg] (bin median)")
+        left.set_ylabel("quadratic-fit sigma [mm]")
+        left.set_title("What a quadratic leaves, 15 px windows")
+        right.set_xlabel("lag [px]")
+        right.set_ylabel("residual correlation")
+        right.set_title("Correlation along rows (solid) and columns (dashed)")
+        right.axhline(0, color="grey", linewidth=0.5)
+        for ax in (left, right):
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+        fig.tight_layout()
+        save(fig, os.path.join(figures, "structure.png"))
 
     fig, ax = plt.subplots(figsize=(5.5, 4))
     for label, s in series:

@@ -67,7 +67,8 @@ const fs::path kSr305 = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
 
 // The four figures calibrate-noise and fidelity draw, each a real PNG, in `dir`.
 void expect_stats_figures(const fs::path& dir) {
-  for (const char* fig : {"sigma_depth.png", "sigma_angle.png", "shadow_band.png", "holes.png"})
+  for (const char* fig :
+       {"sigma_depth.png", "sigma_angle.png", "shadow_band.png", "holes.png", "structure.png"})
     EXPECT_GT(fs::exists(dir / fig) ? fs::file_size(dir / fig) : 0u, 1000u) << dir / fig;
 }
 
