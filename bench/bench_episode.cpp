@@ -2,7 +2,9 @@
 // the scoring, frame after frame as `linksight run` does (without file output). Reports
 // frames/s (the issue 6 target: >= 100 on 2 cores) and the ms of each stage. The argument
 // is the number of frames per iteration (one episode from t = 0); `chain_only` renders as
-// `linksight run` does (the chain's box; see RenderExtent), `whole` every pixel.
+// `linksight run` does (the chain's box; see RenderExtent), `whole` every pixel; the
+// `_one_field` cases with the camera before issue 20 (sr300-one-field) instead of the
+// scene's two-scale sr300, side by side.
 #include <benchmark/benchmark.h>
 
 #include "linksight/sim/episode.hpp"
@@ -10,8 +12,9 @@
 namespace {
 using namespace linksight::sim;
 
-void BM_Episode(benchmark::State& state, bool chain_only) {
-  const Scene scene = load_scene(std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml");
+void BM_Episode(benchmark::State& state, bool chain_only, bool one_field = false) {
+  Scene scene = load_scene(std::string(LINKSIGHT_SCENE_DIR) + "/default.yaml");
+  if (one_field) scene.noise = NoiseParams::sr300_one_field();
   EpisodeOptions o;
   o.frames = static_cast<int>(state.range(0));
   o.chain_only_images = chain_only;
@@ -41,5 +44,13 @@ void BM_Episode(benchmark::State& state, bool chain_only) {
 }
 BENCHMARK_CAPTURE(BM_Episode, chain_only, true)->Arg(241)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Episode, whole, false)->Arg(241)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Episode, chain_only_one_field, true, true)
+    ->Arg(241)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(BM_Episode, whole_one_field, false, true)
+    ->Arg(241)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace

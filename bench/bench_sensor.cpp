@@ -1,4 +1,5 @@
-// One simulated SR300 frame (640x480) with sr300 noise: render (scene update, primary and
+// One simulated SR300 frame (640x480) with sr300-one-field noise (the two-scale sr300 in
+// the *_two_scale cases): render (scene update, primary and
 // projector-shadow rays, occlusion pass, noise and artefacts) plus cloud extraction, for
 // the link alone and for scenes/occluder_pass.yaml at t = 2.3 s (the hand in front of the
 // link's middle; table, wall and mug behind).
@@ -18,10 +19,10 @@ using namespace linksight::sim;
 // field of ranges 7 x 8 px on top of it, or the two-scale `sr300` preset that
 // calibrate-noise fits to the shared SR305 frames (issue 20; docs/sensor.md): what each
 // costs.
-enum class Field { preset, two_terms, matern, two_scale };
+enum class Field { one_field, two_terms, matern, two_scale };
 
 void BM_SensorFrame(benchmark::State& state, const char* scene_file, ExtractParams::Mode mode,
-                    bool chain_only = false, Field field = Field::preset) {
+                    bool chain_only = false, Field field = Field::one_field) {
   Scene scene = load_scene(std::string(LINKSIGHT_SCENE_DIR) + "/" + scene_file);
   scene.segmentation.mode = mode;
   // (the scenes name the preset and nothing else of the noise)

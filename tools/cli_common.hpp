@@ -1,9 +1,7 @@
 #pragma once
 // Pieces that more than one subcommand needs: the --compare list and the plotting scripts.
 
-#include <array>
 #include <atomic>
-#include <cmath>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
@@ -176,6 +174,9 @@ inline CLI::Option* add_half_option(CLI::App& app, std::string& half, const std:
       ->capture_default_str();
 }
 
+/// Degrees per radian: the reports' unit for angles (code keeps radians).
+inline constexpr double kDegPerRad = 180.0 / 3.14159265358979323846;
+
 /// A recording's statistics as tools/plot_fidelity.py draws them (lengths in mm, angles in
 /// degrees, as the keys say).
 inline nlohmann::json stats_series(const sim::DepthStats& s) {
@@ -188,17 +189,13 @@ inline nlohmann::json stats_series(const sim::DepthStats& s) {
   };
   const sim::EdgeSide& shadow = s.projector_side < 0 ? s.near_left : s.near_right;
   // The structure (issue 20): quadratic-fit sigma by incidence, and the residual
-  // correlation at lags 1..kCorrelationLags along rows and along columns (null: no pair).
-  auto lags = [](const std::array<double, sim::kCorrelationLags>& c) {
-    nlohmann::json a = nlohmann::json::array();
-    for (const double x : c) a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json());
-    return a;
-  };
+  // correlation at lags 1..kCorrelationLags along rows and along columns (0 where a lag has
+  // no pair of windows, as depth_stats reads it).
   return {{"sigma_by_depth", bins(s.sigma_by_depth, 1.0)},
-          {"sigma_by_angle", bins(s.sigma_by_angle, 180.0 / 3.14159265358979323846)},
-          {"sigma_quad_by_angle", bins(s.sigma_quad_by_angle, 180.0 / 3.14159265358979323846)},
-          {"correlation_rows", lags(s.correlation_rows)},
-          {"correlation_cols", lags(s.correlation_cols)},
+          {"sigma_by_angle", bins(s.sigma_by_angle, kDegPerRad)},
+          {"sigma_quad_by_angle", bins(s.sigma_quad_by_angle, kDegPerRad)},
+          {"correlation_rows", s.correlation_rows},
+          {"correlation_cols", s.correlation_cols},
           {"shadow_gap_px", shadow.gap_px},
           {"shadow_width_px", shadow.width_px},
           {"hole_sizes_px", s.hole_sizes}};

@@ -25,8 +25,6 @@ namespace linksight::cli {
 namespace fs = std::filesystem;
 namespace {
 
-constexpr double kDeg = 180.0 / 3.14159265358979323846;
-
 struct CalibrateOptions {
   std::string input, intrinsics, out, report;
   bool quiet = false;
@@ -89,11 +87,11 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
           {"depth_step_mm", s.depth_step * 1e3},
           {"windows", s.windows},
           {"sigma_by_depth_m", bins(s.sigma_by_depth, 1.0)},
-          {"sigma_by_angle_deg", bins(s.sigma_by_angle, kDeg)},
+          {"sigma_by_angle_deg", bins(s.sigma_by_angle, kDegPerRad)},
           {"residual_correlation_lag_1_to_4_px", s.correlation},
           {"residual_correlation_rows_lag_1_to_6_px", s.correlation_rows},
           {"residual_correlation_columns_lag_1_to_6_px", s.correlation_cols},
-          {"quadratic_sigma_by_angle_deg", bins(s.sigma_quad_by_angle, kDeg)},
+          {"quadratic_sigma_by_angle_deg", bins(s.sigma_quad_by_angle, kDegPerRad)},
           {"quadratic_beats_plane", s.quad_beats_plane},
           {"sigma_by_window", scales(s.scales)},
           {"neighbour_pairs", s.neighbour_pairs},
@@ -143,7 +141,7 @@ nlohmann::json figure_series(const sim::DepthStats& s, const sim::NoiseFit& fit,
     nlohmann::json a = nlohmann::json::array();
     for (std::size_t k = 0; k < v.size(); ++k) {
       if (v[k].windows == 0) continue;
-      a.push_back({{"centre", v[k].centre * (by_depth ? 1.0 : kDeg)},
+      a.push_back({{"centre", v[k].centre * (by_depth ? 1.0 : kDegPerRad)},
                    {"sigma_mm", model_read(s, fit, shape, by_depth, k).second * 1e3}});
     }
     model[by_depth ? "sigma_by_depth" : "sigma_by_angle"] = a;
@@ -172,7 +170,7 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
   };
   bins(s.sigma_by_depth, 1.0, "z_m");
   os << "plane-fit sigma by incidence (all depths):\n";
-  bins(s.sigma_by_angle, kDeg, "deg");
+  bins(s.sigma_by_angle, kDegPerRad, "deg");
   os << std::setprecision(2) << "residual correlation at 1..4 px: " << s.correlation[0] << " "
      << s.correlation[1] << " " << s.correlation[2] << " " << s.correlation[3] << "\n";
   os << "  along rows at 1..6 px:   ";
@@ -182,7 +180,7 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
   os << "\nquadratic-fit sigma by incidence (all depths):\n";
   for (const sim::SigmaBin& b : s.sigma_quad_by_angle)
     if (b.windows > 0)
-      os << "  deg [" << std::setprecision(0) << b.lo * kDeg << ", " << b.hi * kDeg
+      os << "  deg [" << std::setprecision(0) << b.lo * kDegPerRad << ", " << b.hi * kDegPerRad
          << ")  windows " << std::setw(5) << b.windows << "  sigma_mm " << std::setprecision(2)
          << b.sigma * 1e3 << "\n";
   os << "windows where a quadratic's sigma is below " << sim::kQuadBeatsPlane
@@ -258,7 +256,8 @@ int run_calibrate(const CalibrateOptions& o) {
     sim::RerenderFitParams p;
     p.sweeps = o.sweeps;
     try {
-      fit = sim::fit_noise_rerendered(frames, K, stats, shape_p, sim::NoiseParams::sr300_one_field(), p);
+      fit = sim::fit_noise_rerendered(frames, K, stats, shape_p,
+                                      sim::NoiseParams::sr300_one_field(), p);
     } catch (const std::invalid_argument& e) {
       throw io::InputError(o.input + ": re-rendering its surfaces: " + e.what());
     }
@@ -308,12 +307,13 @@ Runner add_calibrate_noise(CLI::App& app) {
   app.add_flag("--no-shape-correction", o->no_shape_correction,
                "fit sigma as measured, without subtracting what the surfaces' own shape puts "
                "into the plane fit (estimated by re-rendering them without noise)");
-  app.add_option("--structure", o->structure,
-                 "the axial field fitted: one-field (one isotropic width, the sr300-one-field preset's) "
-                 "or two-term (a pixel-scale and a low-frequency field, each with row and "
-                 "column widths) or matern52 (one Matern-5/2 field with row and column ranges) "
-                 "or two-scale (a pixel-scale field with the angle term and a low-frequency "
-                 "one without, fitted by re-rendering the frames: minutes; docs/sensor.md)")
+  app.add_option(
+         "--structure", o->structure,
+         "the axial field fitted: one-field (one isotropic width, the sr300-one-field preset's) "
+         "or two-term (a pixel-scale and a low-frequency field, each with row and "
+         "column widths) or matern52 (one Matern-5/2 field with row and column ranges) "
+         "or two-scale (a pixel-scale field with the angle term and a low-frequency "
+         "one without, fitted by re-rendering the frames: minutes; docs/sensor.md)")
       ->check(CLI::IsMember(structure_names()))
       ->capture_default_str();
   CLI::Option* sweeps =

@@ -72,8 +72,9 @@ Runner add_render(CLI::App& app) {
       ->required();
   app.add_option("--frames", o->frames, "frames to render (0: the scene's duration)")
       ->capture_default_str();
-  app.add_option("--noise", o->noise, "noise preset replacing the scene's: off | sr300 | sr300-one-field")
-      ->check(CLI::IsMember({"off", "sr300", "sr300-one-field"}));
+  app.add_option("--noise", o->noise,
+                 "noise preset replacing the scene's: off | sr300 | sr300-one-field")
+      ->check(CLI::IsMember(sim::NoiseParams::preset_names()));
   app.add_option("--threads", o->threads, "OpenMP threads for ray casting (0: default)")
       ->capture_default_str();
   app.add_option("--out", o->out,

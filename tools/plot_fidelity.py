@@ -4,7 +4,8 @@
 
 Reads DIR/fidelity.json or DIR/calibration.json ({"series": {label: statistics}}), writes
 DIR/figures/{sigma_depth,sigma_angle,shadow_band,holes,structure}.png; a series without a
-statistic is left out of that figure, and a figure no series has is not drawn.
+statistic is left out of that figure (structure.png is not drawn when no series has its
+statistics).
 Usage: plot_fidelity.py DIR
 """
 import json

@@ -1671,8 +1671,9 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
                         dir);
   EXPECT_EQ(r3.code, 0) << r3.err;
   const std::string text3 = slurp_text(scaled);
-  EXPECT_NE(text3.find("# note: two-scale structure by re-rendering 11 frames (12 renders, 1 sweeps)"),
-            std::string::npos)
+  EXPECT_NE(
+      text3.find("# note: two-scale structure by re-rendering 11 frames (12 renders, 1 sweeps)"),
+      std::string::npos)
       << text3;
   EXPECT_NE(text3.find("# note: lateral.sigma_px and dropouts.min_signal kept"), std::string::npos) << text3;
   std::ofstream(dir / "scene3.yaml") << "duration_s: 0.1\n" << text3;

@@ -59,12 +59,17 @@ NoiseParams NoiseParams::sr300() {
 
 NoiseParams NoiseParams::sr300_one_field() { return NoiseParams{}; }
 
+std::vector<std::string> NoiseParams::preset_names() { return {"off", "sr300", "sr300-one-field"}; }
+
 NoiseParams NoiseParams::preset(const std::string& name) {
   if (name == "off") return off();
   if (name == "sr300") return sr300();
   if (name == "sr300-one-field") return sr300_one_field();
-  throw std::invalid_argument("noise preset '" + name +
-                              "': expected off, sr300 or sr300-one-field");
+  const std::vector<std::string> names = preset_names();
+  std::string expected;
+  for (std::size_t k = 0; k < names.size(); ++k)
+    expected += (k == 0 ? "" : k + 1 == names.size() ? " or " : ", ") + names[k];
+  throw std::invalid_argument("noise preset '" + name + "': expected " + expected);
 }
 
 void NoiseParams::validate() const {

@@ -264,8 +264,9 @@ TEST(DepthStats, RealFramesGiveTheMeasuredFigures) {
   EXPECT_NEAR(s.depth_step, 0.000125, 1e-12);
 }
 
-// Issue 8's fidelity check: the re-derived sr300 preset against the real frames, on the
-// real frames' own geometry (0.5-0.9 m): each frame's surface rebuilt from its depth
+// Issue 8's fidelity check, for both presets (the two-scale sr300 of issue 20 and
+// sr300-one-field, issue 8's re-derived sr300), in sample, on the real frames' own
+// geometry (0.5-0.9 m): each frame's surface rebuilt from its depth
 // (depth_surface_mesh: bands and holes filled, the camera's noise smoothed away) and
 // rendered through the simulated camera at the real intrinsics (rerender_surfaces), so
 // the two recordings differ in the sensor model only. Bands as the issue sets them: sigma
@@ -275,11 +276,7 @@ TEST(DepthStats, RealFramesGiveTheMeasuredFigures) {
 constexpr double kFidelitySigmaTol = 0.25;
 constexpr double kFidelityEdgeTol = 0.30;
 
-TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
-  io::Intrinsics K;
-  const std::vector<io::DepthImage> real = real_frames(K);
-  const DepthStats r = depth_stats(real, K);
-  const DepthStats s = depth_stats(rerender_surfaces(real, K, NoiseParams::sr300(), 11), K);
+void expect_fidelity(const DepthStats& r, const DepthStats& s) {
   ASSERT_EQ(r.sigma_by_depth.size(), s.sigma_by_depth.size());  // the same bin edges
   int bins = 0;
   for (std::size_t b = 0; b < r.sigma_by_depth.size(); ++b) {
@@ -302,6 +299,17 @@ TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
   edges("near surface right", r.near_right, s.near_right);
   EXPECT_NEAR(s.flying_rate / r.flying_rate, 1.0, kFidelityEdgeTol);
   EXPECT_EQ(s.projector_side, r.projector_side);
+}
+
+TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
+  io::Intrinsics K;
+  const std::vector<io::DepthImage> real = real_frames(K);
+  const DepthStats r = depth_stats(real, K);
+  for (const bool two_scale : {true, false}) {
+    SCOPED_TRACE(two_scale ? "sr300" : "sr300-one-field");
+    const NoiseParams preset = two_scale ? NoiseParams::sr300() : NoiseParams::sr300_one_field();
+    expect_fidelity(r, depth_stats(rerender_surfaces(real, K, preset, 11), K));
+  }
 }
 
 // Validation that is not in-sample (issue 20, part 3): the one-field fit as
@@ -342,7 +350,8 @@ HeldOutStats held_out(const std::vector<io::DepthImage>& all, const io::Intrinsi
   const DepthStats shape = depth_stats(rerender_surfaces(fit_frames, K, quiet, 1), K);
   const NoiseParams fitted =
       structure == NoiseStructure::two_scale
-          ? fit_noise_rerendered(fit_frames, K, out.fit, &shape, NoiseParams::sr300_one_field()).params
+          ? fit_noise_rerendered(fit_frames, K, out.fit, &shape, NoiseParams::sr300_one_field())
+                .params
           : fit_noise(out.fit, NoiseParams::sr300_one_field(), &shape, structure).params;
   out.real = depth_stats(test_frames, K);
   out.sim = depth_stats(rerender_surfaces(test_frames, K, fitted, 1), K);
@@ -593,9 +602,11 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   RerenderFitParams p;
   p.sweeps = 1;
   p.threads = 1;
-  const NoiseFit one = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
+  const NoiseFit one =
+      fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
   p.threads = 2;
-  const NoiseFit two = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
+  const NoiseFit two =
+      fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
   EXPECT_EQ(noise_yaml(one.params), noise_yaml(two.params));
   EXPECT_EQ(one.notes, two.notes);
   const AxialNoise& ax = one.params.axial;
@@ -615,14 +626,15 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   EXPECT_LT(cost, start) << "one sweep of up to 18 renders found nothing better than the start";
   for (const std::string& n : one.notes)
     EXPECT_EQ(n.find("max_incidence, min_signal kept"), std::string::npos) << n;
-  EXPECT_NE(test::error_of<std::invalid_argument>(
-                [&] { (void)fit_noise(s, NoiseParams::sr300_one_field(), nullptr, NoiseStructure::two_scale); })
-                .find("fit_noise_rerendered"),
+  EXPECT_NE(test::error_of<std::invalid_argument>([&] {
+              (void)fit_noise(s, NoiseParams::sr300_one_field(), nullptr,
+                              NoiseStructure::two_scale);
+            }).find("fit_noise_rerendered"),
             std::string::npos);
   p.sweeps = -1;
-  EXPECT_NE(test::error_of<std::invalid_argument>(
-                [&] { (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p); })
-                .find("sweeps = -1"),
+  EXPECT_NE(test::error_of<std::invalid_argument>([&] {
+              (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
+            }).find("sweeps = -1"),
             std::string::npos);
   EXPECT_EQ(parse_noise_structure("two-scale"), NoiseStructure::two_scale);
 }
@@ -725,7 +737,8 @@ TEST(DepthStats, WindowResponsePredictsTheTwoTermFieldsReading) {
   constexpr double kFitRhoTol = 0.05;    // seen: within 0.03
   constexpr double kFitRatioTol = 0.05;  // quadratic over plane variance (seen: 0.02)
   constexpr double kFitSigmaRelTol = 0.15;  // seen: 9%
-  const NoiseFit fit = fit_noise(s, NoiseParams::sr300_one_field(), nullptr, NoiseStructure::two_term);
+  const NoiseFit fit =
+      fit_noise(s, NoiseParams::sr300_one_field(), nullptr, NoiseStructure::two_term);
   const AxialNoise& f = fit.params.axial;
   const WindowResponse fr = window_response(f, s.window);
   expect_reads_as(s, fr, kFitRhoTol, 4);
@@ -757,7 +770,8 @@ TEST(DepthStats, WindowResponsePredictsTheMaternFieldsReading) {
   constexpr double kFitRhoTol = 0.05;       // seen: within 0.02
   constexpr double kFitRangeRelTol = 0.10;  // seen: 4.2 x 7.3 px for 4 x 7
   constexpr double kFitSigmaRelTol = 0.10;  // seen: 4%
-  const NoiseFit fit = fit_noise(s, NoiseParams::sr300_one_field(), nullptr, NoiseStructure::matern52);
+  const NoiseFit fit =
+      fit_noise(s, NoiseParams::sr300_one_field(), nullptr, NoiseStructure::matern52);
   const AxialNoise& f = fit.params.axial;
   EXPECT_EQ(f.kernel, AxialKernel::matern52);
   EXPECT_EQ(f.low_share, 0.0);

@@ -142,7 +142,8 @@ TEST_F(BadScene, SensorKeysNameLineAndKey) {
   has("camera:\n  X_WC: [1, 0, 0]\n", "camera.X_WC: expected 16 numbers");
   has("camera:\n  look_at: {eye_m: [0, 0, 1], target_m: [0, 0, 0]}\n",
       "camera.look_at: look_at: view direction is parallel to up");
-  has("noise:\n  preset: loud\n", ":2: noise.preset: noise preset 'loud': expected off, sr300 or sr300-one-field");
+  has("noise:\n  preset: loud\n",
+      ":2: noise.preset: noise preset 'loud': expected off, sr300 or sr300-one-field");
   has("noise:\n  edges: {p_drop: 2}\n", ":2: noise.edges.p_drop = 2: must be in [0, 1]");
   // The reader and validate() share one range: what the file may say, code may set.
   has("noise:\n  axial: {a_m: 0.5}\n", ":2: noise.axial.a_m = 0.5: must be in [0, 0.1]");

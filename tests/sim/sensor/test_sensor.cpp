@@ -411,12 +411,8 @@ TEST(Sensor, DropStepsLeavesNoReportedNeighboursAJumpApart) {
 
 class SensorThreads : public ::testing::TestWithParam<double> {};
 
-// White and correlated axial noise (the blurred field is built in parallel too).
-TEST_P(SensorThreads, SameImagesForAnyThreadCount) {
+void expect_same_images_for_any_thread_count(const NoiseParams& noise) {
   const ComponentGeometry g;
-  NoiseParams noise = NoiseParams::sr300();
-  noise.axial.correlation_px = GetParam();
-  noise.axial.correlation_cols_px = 0;  // (a white term has no width)
   SensorParams p = side_view(noise);
   BackgroundObject table;
   table.shape.half_extents = Eigen::Vector3d(1.0, 1.0, 0.01);
@@ -437,6 +433,19 @@ TEST_P(SensorThreads, SameImagesForAnyThreadCount) {
   EXPECT_NE(one.render(X, 0.0, 42, 0).depth.data, one.render(X, 0.0, 42, 1).depth.data);
   EXPECT_NE(one.render(X, 0.0, 42, 0).depth.data, one.render(X, 0.0, 43, 0).depth.data);
 }
+
+// The pixel-scale axial field white or correlated (the blurred field is built in parallel
+// too), in the one-field model and beside the two-scale sr300's low-frequency field.
+TEST_P(SensorThreads, SameImagesForAnyThreadCount) {
+  for (const bool two_scale : {false, true}) {
+    SCOPED_TRACE(two_scale ? "sr300" : "sr300-one-field");
+    NoiseParams noise = two_scale ? NoiseParams::sr300() : NoiseParams::sr300_one_field();
+    noise.axial.correlation_px = GetParam();
+    noise.axial.correlation_cols_px = 0;  // (a white term has no width)
+    expect_same_images_for_any_thread_count(noise);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Sensor, SensorThreads, ::testing::Values(0.0, 1.5),
                          [](const ::testing::TestParamInfo<double>& i) {
                            return i.param > 0 ? std::string("Correlated") : std::string("White");

@@ -234,8 +234,8 @@ struct NoiseFit {
 };
 
 /// What fit_noise fits of the axial field's structure (AxialNoise): `one_field` the single
-/// isotropic field (the sr300 preset's); `two_term` a pixel-scale field with its own widths
-/// along rows and columns plus a low-frequency field with its own widths and share of the
+/// isotropic field (the sr300-one-field preset's); `two_term` a pixel-scale field with its own
+/// widths along rows and columns plus a low-frequency field with its own widths and share of the
 /// variance (docs/sensor.md: on the shared SR305 frames it does not yet read as the camera
 /// does, so it is not the default); `matern52` one Matern-5/2 field (AxialKernel) with its
 /// own ranges along rows and columns, fitted to the same readings as `two_term`;
@@ -305,7 +305,7 @@ inline constexpr int kMinSimWindows = 5;
 
 /// How fit_noise_rerendered searches.
 struct RerenderFitParams {
-  int sweeps = 12;         ///< pattern-search sweeps (each 2 renders per parameter: 18)
+  int sweeps = 12;         ///< pattern-search sweeps (at most 2 renders per parameter: 18)
   std::uint64_t seed = 1;  ///< of the renders' noise draws
   int threads = 0;         ///< OpenMP threads of each render (0: the default); any gives the same fit
 };

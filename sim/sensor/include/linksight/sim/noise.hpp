@@ -11,6 +11,7 @@
 #include <numbers>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "linksight/tracker/fields.hpp"
 
@@ -217,9 +218,10 @@ struct NoiseParams {
   [[nodiscard]] static NoiseParams sr300();
   /// The defaults above: the one-field model (issue 8), `sr300` until issue 20.
   [[nodiscard]] static NoiseParams sr300_one_field();
-  /// "off", "sr300" or "sr300-one-field"; throws std::invalid_argument naming the preset
-  /// otherwise.
+  /// One of preset_names(); throws std::invalid_argument naming the preset otherwise.
   [[nodiscard]] static NoiseParams preset(const std::string& name);
+  /// "off", "sr300", "sr300-one-field".
+  [[nodiscard]] static std::vector<std::string> preset_names();
   /// The keys of the scene's `noise` block; `preset` and `scale` there are read, not
   /// fields: a preset is where the block starts, a scale multiplies the random terms.
   template <class Archive>
