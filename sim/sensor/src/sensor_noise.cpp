@@ -199,13 +199,28 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
   const bool low = ax.enabled && !low_rows_kernel_.empty();
   const bool correlated = fine || low;
   int bu0 = W, bu1 = -1, bv0 = H, bv1 = -1;
-  if (correlated) {  // hits lie in the cast rectangle
-    for (int v = std::max(0, hits.v0); v <= std::min(H - 1, hits.v1); ++v)
-      for (int u = std::max(0, hits.u0); u <= std::min(W - 1, hits.u1); ++u)
-        if (in.depth_m[static_cast<std::size_t>(v) * W + u] > 0) {
-          bu0 = std::min(bu0, u), bu1 = std::max(bu1, u);
-          bv0 = std::min(bv0, v), bv1 = std::max(bv1, v);
+  if (correlated) {  // hits lie in the cast rectangle; min and max are exact in any order
+    const int v_lo = std::max(0, hits.v0), v_hi = std::min(H - 1, hits.v1);
+    const int u_lo = std::max(0, hits.u0), u_hi = std::min(W - 1, hits.u1);
+#pragma omp parallel for schedule(static) num_threads(threads) \
+    reduction(min : bu0, bv0) reduction(max : bu1, bv1)
+    for (int v = v_lo; v <= v_hi; ++v) {
+      const float* row = in.depth_m.data() + static_cast<std::size_t>(v) * W;
+      int first = u_hi + 1, last = u_lo - 1;
+      for (int u = u_lo; u <= u_hi; ++u)
+        if (row[u] > 0) {
+          first = u;
+          break;
         }
+      if (first > u_hi) continue;
+      for (int u = u_hi; u >= first; --u)
+        if (row[u] > 0) {
+          last = u;
+          break;
+        }
+      bu0 = std::min(bu0, first), bu1 = std::max(bu1, last);
+      bv0 = std::min(bv0, v), bv1 = std::max(bv1, v);
+    }
   }
   // White noise over the nodes [x0, x1] x [y0, y1] of a lattice `stride` nodes wide, node
   // (x, y) drawn from `stream` with key index y * stride + x (so its value depends on the
@@ -227,21 +242,29 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       blur_columns(blurred_, white_, w, h, cols, threads);
     }
   };
+  // The field buffers are read inside the box only (every valid pixel of `noisy` lies in
+  // it), so they are not cleared: the first field written into a buffer overwrites it over
+  // a rectangle that covers the box (weight * value, what adding it to zero gives, bit for
+  // bit), and later ones add to it.
   // The field of `stream` over the box, blurred by `rows` then `cols` (white where they are
-  // empty), each pixel's value times `weight` added into `field`.
+  // empty), each pixel's value times `weight` written (`overwrite`) or added into `field`.
   const auto add_field = [&](const std::vector<float>& rows, const std::vector<float>& cols,
-                             std::uint64_t stream, float weight, std::vector<float>& field) {
+                             std::uint64_t stream, float weight, bool overwrite,
+                             std::vector<float>& field) {
     const int Ru = static_cast<int>(rows.size() / 2), Rv = static_cast<int>(cols.size() / 2);
     const int fu0 = std::max(0, bu0 - Ru), fu1 = std::min(W - 1, bu1 + Ru);
     const int fv0 = std::max(0, bv0 - Rv), fv1 = std::min(H - 1, bv1 + Rv);
     const int fw = fu1 - fu0 + 1, fh = fv1 - fv0 + 1;
     draw_blurred(fu0, fu1, fv0, fv1, W, stream, rows, cols);
-    // (weight 1 into the zeroed field_ is the field itself, bit for bit: the one-field model)
+    // (weight 1, overwriting, is the field itself, bit for bit: the one-field model)
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int y = 0; y < fh; ++y) {
       const float* src = white_.data() + static_cast<std::ptrdiff_t>(y) * fw;
       float* dst = field.data() + static_cast<std::ptrdiff_t>(y + fv0) * W + fu0;
-      for (int x = 0; x < fw; ++x) dst[x] += weight * src[x];
+      if (overwrite)
+        for (int x = 0; x < fw; ++x) dst[x] = weight * src[x];
+      else
+        for (int x = 0; x < fw; ++x) dst[x] += weight * src[x];
     }
   };
   // The low field on a grid of stride S: node (gx, gy) sits at pixel (gx S, gy S), and
@@ -250,7 +273,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
   // sees the whole frame's field inside it; the blur runs over the nodes the box needs
   // plus the kernels' reach, and each pixel of the box interpolates bilinearly.
   const auto add_grid_field = [&](const std::vector<float>& rows, const std::vector<float>& cols,
-                                  int S, float weight, std::vector<float>& field) {
+                                  int S, float weight, bool overwrite, std::vector<float>& field) {
     const int GW = (W - 1) / S + 2, GH = (H - 1) / S + 2;
     const int Ru = static_cast<int>(rows.size() / 2), Rv = static_cast<int>(cols.size() / 2);
     const int gx0 = std::max(0, bu0 / S - Ru), gx1 = std::min(GW - 1, bu1 / S + 1 + Ru);
@@ -258,39 +281,52 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
     const int gw = gx1 - gx0 + 1;
     draw_blurred(gx0, gx1, gy0, gy1, GW, kAxialLowGrid, rows, cols);
     const float step = 1.0F / static_cast<float>(S);
+    // Each grid row the box reads, interpolated along u once (every S pixel rows share it),
+    // then each pixel row between two of them: the same float operations per pixel as
+    // interpolating both rows at each pixel, in half the work and in loops that vectorize.
+    const int bw = bu1 - bu0 + 1;
+    const int r0 = bv0 / S - gy0, r1 = bv1 / S + 1 - gy0;  // within white_'s rows
+    along_u_.resize(static_cast<std::size_t>(r1 - r0 + 1) * bw);
 #pragma omp parallel for schedule(static) num_threads(threads)
-    for (int v = bv0; v <= bv1; ++v) {
-      const float fy = static_cast<float>(v % S) * step;
-      const float* r0 = white_.data() + static_cast<std::ptrdiff_t>(v / S - gy0) * gw;
-      const float* r1 = r0 + gw;
-      float* dst = field.data() + static_cast<std::ptrdiff_t>(v) * W;
+    for (int r = r0; r <= r1; ++r) {
+      const float* src = white_.data() + static_cast<std::ptrdiff_t>(r) * gw;
+      float* dst = along_u_.data() + static_cast<std::ptrdiff_t>(r - r0) * bw;
       for (int u = bu0; u <= bu1; ++u) {
         const int g = u / S - gx0;
         const float fx = static_cast<float>(u % S) * step;
-        const float top = (1 - fx) * r0[g] + fx * r0[g + 1];
-        const float bottom = (1 - fx) * r1[g] + fx * r1[g + 1];
-        dst[u] += weight * ((1 - fy) * top + fy * bottom);
+        dst[u - bu0] = (1 - fx) * src[g] + fx * src[g + 1];
       }
     }
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int v = bv0; v <= bv1; ++v) {
+      const float fy = static_cast<float>(v % S) * step;
+      const float* top = along_u_.data() + static_cast<std::ptrdiff_t>(v / S - gy0 - r0) * bw;
+      const float* bottom = top + bw;
+      float* dst = field.data() + static_cast<std::ptrdiff_t>(v) * W + bu0;
+      if (overwrite)
+        for (int i = 0; i < bw; ++i) dst[i] = weight * ((1 - fy) * top[i] + fy * bottom[i]);
+      else
+        for (int i = 0; i < bw; ++i) dst[i] += weight * ((1 - fy) * top[i] + fy * bottom[i]);
+    }
   };
-  const auto add_low = [&](float weight, std::vector<float>& field) {
+  const auto add_low = [&](float weight, bool overwrite, std::vector<float>& field) {
     if (ax.low_stride_px > 1)
-      add_grid_field(low_rows_kernel_, low_cols_kernel_, ax.low_stride_px, weight, field);
+      add_grid_field(low_rows_kernel_, low_cols_kernel_, ax.low_stride_px, weight, overwrite, field);
     else
-      add_field(low_rows_kernel_, low_cols_kernel_, kAxialLow, weight, field);
+      add_field(low_rows_kernel_, low_cols_kernel_, kAxialLow, weight, overwrite, field);
   };
   // Without the angle term in the low field, the two fields stay apart (unit variance
   // each) and are scaled per pixel below.
   const bool split = low && !ax.low_angle_term;
   if (correlated && bu1 >= 0) {
-    field_.assign(n, 0.0F);
+    field_.resize(n);
     add_field(rows_kernel_, cols_kernel_, kAxial,
-              split ? 1.0F : static_cast<float>(std::sqrt(1 - ax.low_share)), field_);
+              split ? 1.0F : static_cast<float>(std::sqrt(1 - ax.low_share)), true, field_);
     if (split) {
-      low_field_.assign(n, 0.0F);
-      add_low(1.0F, low_field_);
+      low_field_.resize(n);
+      add_low(1.0F, true, low_field_);
     } else if (low) {
-      add_low(static_cast<float>(std::sqrt(ax.low_share)), field_);
+      add_low(static_cast<float>(std::sqrt(ax.low_share)), false, field_);
     }
   }
   const double cos_max = std::cos(noise.dropouts.max_incidence);
@@ -375,25 +411,41 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
     // does not depend on the order (or the thread) in which its neighbours are visited. The
     // reported depths are the PNG's units: the camera's own rule sees nothing finer.
     steps_ = depth.data;
+    // The camera's rule, (a - b) unit > jump for a valid neighbour b, as a threshold on the
+    // integer difference: the least d with d unit > jump, found with the same double
+    // product, so the two agree for every d.
     const double jump = noise.edges.jump;
+    int d_min = std::max(1, static_cast<int>(jump / unit) - 1);
+    while (!(d_min * unit > jump)) ++d_min;
+    while (d_min > 1 && (d_min - 1) * unit > jump) --d_min;
+    // A neighbour outside the image is a pixel that reports nothing (0), which never drops
+    // anything: the rows above the first and below the last read a row of zeros.
+    none_.assign(static_cast<std::size_t>(W), 0);
+    // A pixel drops when its nearest valid neighbour b has a - b >= d_min. b - 1 in 16 bits
+    // sends "nothing" (0) to 65535, above every valid b - 1, so the least of the four is the
+    // nearest valid neighbour's, less 1 (65535 when none is valid, which never drops).
+    const auto less_one = [](int b) { return static_cast<std::uint16_t>(b - 1); };
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int v = noisy.v0; v <= noisy.v1; ++v) {
-      for (int u = noisy.u0; u <= noisy.u1; ++u) {
-        const std::size_t pix = static_cast<std::size_t>(v) * W + u;
-        const int a = steps_[pix];
-        if (a == 0) continue;
-        const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
-        for (int k = 0; k < 4; ++k) {
-          const int uu = u + du[k], vv = v + dv[k];
-          if (uu < 0 || uu >= W || vv < 0 || vv >= H) continue;
-          const int b = steps_[static_cast<std::size_t>(vv) * W + uu];
-          if (b != 0 && (a - b) * unit > jump) {  // a valid neighbour this much nearer
-            depth.data[pix] = 0;
-            depth_m[pix] = 0.0F;
-            break;
-          }
-        }
-      }
+      const std::uint16_t* row = steps_.data() + static_cast<std::ptrdiff_t>(v) * W;
+      const std::uint16_t* up = v > 0 ? row - W : none_.data();
+      const std::uint16_t* down = v < H - 1 ? row + W : none_.data();
+      std::uint16_t* out = depth.data.data() + static_cast<std::ptrdiff_t>(v) * W;
+      float* out_m = depth_m.data() + static_cast<std::ptrdiff_t>(v) * W;
+      // Written whatever the outcome (a select, not a branch), so that the loop vectorizes.
+      const auto check = [&](int u, int left, int right) {
+        const int a = row[u];
+        const int m = std::min(std::min(less_one(left), less_one(right)),
+                               std::min(less_one(up[u]), less_one(down[u])));
+        const bool drop = a - 1 - m >= d_min;
+        out[u] = drop ? std::uint16_t{0} : out[u];
+        out_m[u] = drop ? 0.0F : out_m[u];
+      };
+      // The two border columns apart, so that the loop between them has no bounds to test.
+      const int u_lo = std::max(noisy.u0, 1), u_hi = std::min(noisy.u1, W - 2);
+      if (noisy.u0 == 0) check(0, 0, W > 1 ? row[1] : 0);
+      for (int u = u_lo; u <= u_hi; ++u) check(u, row[u - 1], row[u + 1]);
+      if (noisy.u1 == W - 1 && W > 1) check(W - 1, row[W - 2], 0);
     }
   }
 }

@@ -55,8 +55,10 @@ class SensorNoise {
   // columns, and the low-frequency term's (empty when it is off).
   std::vector<float> rows_kernel_, cols_kernel_, low_rows_kernel_, low_cols_kernel_;
   std::vector<float> white_, blurred_, field_, low_field_;  // their per-frame buffers
+  std::vector<float> along_u_;  // the low field's grid rows, interpolated along u
   std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
   std::vector<std::uint16_t> steps_;          // the reported depth, for edges.drop_steps
+  std::vector<std::uint16_t> none_;           // a row of pixels that report nothing
   std::vector<int> blob_;                     // the hole being grown
   std::vector<std::uint32_t> blob_stamp_;     // per pixel: the id of the last blob it joined
   std::uint32_t blob_id_ = 0;
