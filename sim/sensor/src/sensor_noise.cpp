@@ -329,6 +329,9 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       add_low(static_cast<float>(std::sqrt(ax.low_share)), false, field_);
     }
   }
+  // The two fields' shares of a + c z^2 as scales, once (std::sqrt may set errno, so the
+  // compiler would take it at every pixel).
+  const double fine_share = 1 - ax.low_share, low_scale = std::sqrt(ax.low_share);
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = camera_.z_min, z_max = camera_.z_max;
   const double unit = K.depth_scale;
@@ -393,8 +396,8 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       if (split) {
         const AxialNoise::Point p = ax.point(z0, in.incidence[pix]);
         const double base = ax.base(p), angle = ax.sigma(p) - base;
-        z += std::sqrt((1 - ax.low_share) * base * base + angle * angle) * static_cast<double>(field_[pix]) +
-             std::sqrt(ax.low_share) * base * static_cast<double>(low_field_[pix]);
+        z += std::sqrt(fine_share * base * base + angle * angle) * static_cast<double>(field_[pix]) +
+             low_scale * base * static_cast<double>(low_field_[pix]);
       } else if (noise.axial.enabled) {
         z += noise.axial.sigma(z0, in.incidence[pix]) *
              (correlated ? static_cast<double>(field_[pix]) : normal(key, kAxial));
