@@ -199,9 +199,17 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
   const bool low = ax.enabled && !low_rows_kernel_.empty();
   const bool correlated = fine || low;
   int bu0 = W, bu1 = -1, bv0 = H, bv1 = -1;
-  if (correlated) {  // hits lie in the cast rectangle; min and max are exact in any order
-    const int v_lo = std::max(0, hits.v0), v_hi = std::min(H - 1, hits.v1);
-    const int u_lo = std::max(0, hits.u0), u_hi = std::min(W - 1, hits.u1);
+  if (correlated) {
+    // Hits lie in `hits`; the scan also covers `noisy`, so that the field buffers, which are
+    // not cleared, are written at every pixel the pass below reads, whatever a caller
+    // passes. Min and max are exact in any order.
+    PixelBox scan = hits;
+    if (!noisy.empty())
+      scan = hits.empty() ? noisy
+                          : PixelBox{std::min(hits.u0, noisy.u0), std::max(hits.u1, noisy.u1),
+                                     std::min(hits.v0, noisy.v0), std::max(hits.v1, noisy.v1)};
+    const int v_lo = std::max(0, scan.v0), v_hi = std::min(H - 1, scan.v1);
+    const int u_lo = std::max(0, scan.u0), u_hi = std::min(W - 1, scan.u1);
 #pragma omp parallel for schedule(static) num_threads(threads) \
     reduction(min : bu0, bv0) reduction(max : bu1, bv1)
     for (int v = v_lo; v <= v_hi; ++v) {

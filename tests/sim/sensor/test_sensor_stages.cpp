@@ -188,6 +188,37 @@ TEST(SensorNoise, SameDepthForAnyThreadCount) {
   EXPECT_EQ(one_m, three_m);
 }
 
+// The field buffers are not cleared between frames (sensor_noise.cpp): the pixels of
+// `noisy` get the whole frame's values whatever box `hits` names (here a corner of the
+// plate only, after a frame of other draws has filled the buffers), for both presets.
+TEST(SensorNoise, NoisyBoxGetsTheWholeFramesValuesWhateverTheHitsBox) {
+  const CameraParams camera;
+  const Plate plate(camera.intrinsics, 0.6);
+  const int W = plate.width, H = plate.height;
+  const PixelBox noisy{100, 400, 80, 300}, corner{0, 50, 0, 40};
+  for (const NoiseParams& n : {NoiseParams::sr300(), NoiseParams::sr300_one_field()}) {
+    SensorNoise noise(n, camera);
+    io::DepthImage whole, part;
+    std::vector<float> whole_m, part_m;
+    noise.apply(plate.input(), 5, 2, 2, whole, whole_m);
+    noise.apply(plate.input(), 6, 3, 2, part, part_m);  // other draws in the buffers
+    noise.apply(plate.input(), 5, 2, noisy, corner, 2, part, part_m);
+    int compared = 0;
+    for (int v = 0; v < H; ++v)
+      for (int u = 0; u < W; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v) * W + u;
+        if (!noisy.contains(u, v)) {
+          ASSERT_EQ(part.data[i], 0) << u << ", " << v << ": outside the noisy box";
+          continue;
+        }
+        ASSERT_EQ(part.data[i], whole.data[i]) << u << ", " << v;
+        ASSERT_EQ(part_m[i], whole_m[i]) << u << ", " << v;
+        compared += whole.data[i] != 0;
+      }
+    EXPECT_GT(compared, 50000);
+  }
+}
+
 // The two-term axial field of the tests below: sigma a, the pixel-scale term with widths
 // 1 px along rows and 2 px along columns, the low-frequency term with `low_rows` and
 // `low_cols` [px] and kTwoTermShare of the variance, drawn every `stride` px.
