@@ -118,7 +118,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
 }
 
 void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame,
-                        const PixelBox& noisy, const PixelBox& hits, int threads,
+                        const PixelBox& noisy_asked, const PixelBox& hits, int threads,
                         io::DepthImage& depth, std::vector<float>& depth_m) {
   const io::Intrinsics& K = camera_.intrinsics;
   const NoiseParams& noise = noise_;
@@ -135,6 +135,9 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
                                   " values for " + std::to_string(n) + " pixels");
   }
   if (threads <= 0) threads = omp_get_max_threads();
+  // Only the image's pixels can be written: a box reaching beyond it is cut to it.
+  const PixelBox noisy{std::max(0, noisy_asked.u0), std::min(W - 1, noisy_asked.u1),
+                       std::max(0, noisy_asked.v0), std::min(H - 1, noisy_asked.v1)};
   const std::uint64_t frame_seed = detail::sensor_frame_seed(seed, frame);
   depth.width = W;
   depth.height = H;
@@ -250,10 +253,11 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       blur_columns(blurred_, white_, w, h, cols, threads);
     }
   };
-  // The field buffers are read inside the box only (every valid pixel of `noisy` lies in
-  // it), so they are not cleared: the first field written into a buffer overwrites it over
-  // a rectangle that covers the box (weight * value, what adding it to zero gives, bit for
-  // bit), and later ones add to it.
+  // The field buffers are read inside the box only (every valid pixel of `noisy`, clipped
+  // to the image above, lies in it), so they are not cleared: the first field written into
+  // a buffer overwrites it over a rectangle that covers the box (weight * value, what adding
+  // it to zero gives, bit for bit but for the sign of a zero, which z0 + sigma * field
+  // does not see), and later ones add to it.
   // The field of `stream` over the box, blurred by `rows` then `cols` (white where they are
   // empty), each pixel's value times `weight` written (`overwrite`) or added into `field`.
   const auto add_field = [&](const std::vector<float>& rows, const std::vector<float>& cols,

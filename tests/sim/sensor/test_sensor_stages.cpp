@@ -190,7 +190,8 @@ TEST(SensorNoise, SameDepthForAnyThreadCount) {
 
 // The field buffers are not cleared between frames (sensor_noise.cpp): the pixels of
 // `noisy` get the whole frame's values whatever box `hits` names (here a corner of the
-// plate only, after a frame of other draws has filled the buffers), for both presets.
+// plate only, after a frame of other draws has filled the buffers), for both presets, and
+// a `noisy` box beyond the image is cut to it.
 TEST(SensorNoise, NoisyBoxGetsTheWholeFramesValuesWhateverTheHitsBox) {
   const CameraParams camera;
   const Plate plate(camera.intrinsics, 0.6);
@@ -216,6 +217,10 @@ TEST(SensorNoise, NoisyBoxGetsTheWholeFramesValuesWhateverTheHitsBox) {
         compared += whole.data[i] != 0;
       }
     EXPECT_GT(compared, 50000);
+    // A box reaching beyond the image is cut to it: the whole frame.
+    noise.apply(plate.input(), 5, 2, PixelBox{-5, W + 5, -5, H + 5}, corner, 2, part, part_m);
+    EXPECT_EQ(part.data, whole.data);
+    EXPECT_EQ(part_m, whole_m);
   }
 }
 

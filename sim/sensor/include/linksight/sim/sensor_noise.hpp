@@ -37,9 +37,12 @@ class SensorNoise {
   SensorNoise(const NoiseParams& noise, const CameraParams& camera);
 
   /// Writes `depth` (sensor units, 0 = none) and `depth_m` ([m], 0 = none; quantized when
-  /// noise.quantize) for the pixels in `noisy`, clearing the rest. `hits` bounds the hits
-  /// (depth_m > 0) the edge rules may read; the correlated field is drawn over the hits in
-  /// it and in `noisy`, so `noisy`'s pixels are the whole frame's. Draws come from (seed, frame)
+  /// noise.quantize) for the pixels in `noisy` (clipped to the image), clearing the rest.
+  /// The correlated field is drawn over the hits (depth_m > 0) inside `hits` and `noisy`,
+  /// and its values depend on the pixel only, so they are the whole frame's; the edge
+  /// rules read the input up to 2 px beyond `noisy`, and drop_steps sees nothing beyond it
+  /// (Sensor passes a `noisy` box inside the cast, so that its pixels are the whole frame's
+  /// render). Draws come from (seed, frame)
   /// and the pixel index only: the same for any thread count (`threads` 0: the OpenMP
   /// default). Throws std::invalid_argument when the input's size is not the camera's.
   void apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame,
