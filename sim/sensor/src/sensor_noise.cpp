@@ -109,6 +109,13 @@ SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
     low_rows_kernel_ = unit_variance_gaussian(ax.low_rows_px / ax.low_stride_px);
     low_cols_kernel_ = unit_variance_gaussian(ax.low_cols_px / ax.low_stride_px);
   }
+  // edges.drop_steps in the PNG's units: the least d with d unit > jump, found with the
+  // same double product as the rule, so the two agree for every d.
+  const double jump = noise.edges.jump, unit = camera.intrinsics.depth_scale;
+  step_units_ = std::max(1, static_cast<int>(jump / unit) - 1);
+  while (!(step_units_ * unit > jump)) ++step_units_;
+  while (step_units_ > 1 && (step_units_ - 1) * unit > jump) --step_units_;
+  none_.assign(static_cast<std::size_t>(camera.intrinsics.width), 0);
 }
 
 void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame, int threads,
@@ -330,20 +337,20 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
   // Without the angle term in the low field, the two fields stay apart (unit variance
   // each) and are scaled per pixel below.
   const bool split = low && !ax.low_angle_term;
+  // The two fields' shares of a + c z^2 as scales, once (std::sqrt may set errno, so the
+  // compiler would take it at every pixel).
+  const double fine_share = 1 - ax.low_share, low_scale = std::sqrt(ax.low_share);
   if (correlated && bu1 >= 0) {
     field_.resize(n);
     add_field(rows_kernel_, cols_kernel_, kAxial,
-              split ? 1.0F : static_cast<float>(std::sqrt(1 - ax.low_share)), true, field_);
+              split ? 1.0F : static_cast<float>(std::sqrt(fine_share)), true, field_);
     if (split) {
       low_field_.resize(n);
       add_low(1.0F, true, low_field_);
     } else if (low) {
-      add_low(static_cast<float>(std::sqrt(ax.low_share)), false, field_);
+      add_low(static_cast<float>(low_scale), false, field_);
     }
   }
-  // The two fields' shares of a + c z^2 as scales, once (std::sqrt may set errno, so the
-  // compiler would take it at every pixel).
-  const double fine_share = 1 - ax.low_share, low_scale = std::sqrt(ax.low_share);
   const double cos_max = std::cos(noise.dropouts.max_incidence);
   const double z_min = camera_.z_min, z_max = camera_.z_max;
   const double unit = K.depth_scale;
@@ -427,15 +434,10 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
     // reported depths are the PNG's units: the camera's own rule sees nothing finer.
     steps_ = depth.data;
     // The camera's rule, (a - b) unit > jump for a valid neighbour b, as a threshold on the
-    // integer difference: the least d with d unit > jump, found with the same double
-    // product, so the two agree for every d.
-    const double jump = noise.edges.jump;
-    int d_min = std::max(1, static_cast<int>(jump / unit) - 1);
-    while (!(d_min * unit > jump)) ++d_min;
-    while (d_min > 1 && (d_min - 1) * unit > jump) --d_min;
-    // A neighbour outside the image is a pixel that reports nothing (0), which never drops
-    // anything: the rows above the first and below the last read a row of zeros.
-    none_.assign(static_cast<std::size_t>(W), 0);
+    // integer difference (step_units_, set up in the constructor). A neighbour outside the
+    // image is a pixel that reports nothing (0), which never drops anything: the rows above
+    // the first and below the last read none_, a row of zeros.
+    const int d_min = step_units_;
     // A pixel drops when its nearest valid neighbour b has a - b >= d_min. b - 1 in 16 bits
     // sends "nothing" (0) to 65535, above every valid b - 1, so the least of the four is the
     // nearest valid neighbour's, less 1 (65535 when none is valid, which never drops).

@@ -63,6 +63,7 @@ class SensorNoise {
   std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
   std::vector<std::uint16_t> steps_;          // the reported depth, for edges.drop_steps
   std::vector<std::uint16_t> none_;           // a row of pixels that report nothing
+  int step_units_ = 1;  // edges.drop_steps: the least depth difference [units] over the jump
   std::vector<int> blob_;                     // the hole being grown
   std::vector<std::uint32_t> blob_stamp_;     // per pixel: the id of the last blob it joined
   std::uint32_t blob_id_ = 0;
