@@ -34,6 +34,8 @@ struct CalibrateOptions {
   std::string half = "all";             // sim::FrameHalf
   int sweeps = sim::RerenderFitParams{}.sweeps;  // two-scale's search
   bool sweeps_given = false;
+  int draws = sim::RerenderFitParams{}.draws;  // two-scale: noise draws per frame, pooled
+  bool draws_given = false;
 };
 
 // The --structure values, from the structures' one list.
@@ -251,10 +253,14 @@ int run_calibrate(const CalibrateOptions& o) {
   if (o.sweeps_given && structure != sim::NoiseStructure::two_scale)
     throw io::InputError("--sweeps: only the two-scale structure searches (--structure " +
                          o.structure + ")");
+  if (o.draws_given && structure != sim::NoiseStructure::two_scale)
+    throw io::InputError("--draws: only the two-scale structure re-renders (--structure " +
+                         o.structure + ")");
   sim::NoiseFit fit;
   if (structure == sim::NoiseStructure::two_scale) {
     sim::RerenderFitParams p;
     p.sweeps = o.sweeps;
+    p.draws = o.draws;
     try {
       fit = sim::fit_noise_rerendered(frames, K, stats, shape_p,
                                       sim::NoiseParams::sr300_one_field(), p);
@@ -321,11 +327,18 @@ Runner add_calibrate_noise(CLI::App& app) {
                      "two-scale: pattern-search sweeps (each re-renders the frames 18 times)")
           ->check(CLI::Range(0, 1000))
           ->capture_default_str();
+  CLI::Option* draws =
+      app.add_option("--draws", o->draws,
+                     "two-scale: noise draws of each frame that every candidate is read over "
+                     "(the search follows the model's expected statistics, not one draw's)")
+          ->check(CLI::Range(1, 64))
+          ->capture_default_str();
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
-  return [o, sweeps] {
+  return [o, sweeps, draws] {
     o->sweeps_given = sweeps->count() > 0;
+    o->draws_given = draws->count() > 0;
     return run_calibrate(*o);
   };
 }

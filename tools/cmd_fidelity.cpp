@@ -31,13 +31,16 @@ struct FidelityOptions {
   std::string noise_scene;  // --rerender: the noise block of this scene (default: sr300)
   bool no_figures = false, quiet = false, force = false;
   std::string half = "all";  // sim::FrameHalf of --real (and so of what --rerender renders)
+  int draws = sim::RerenderFitParams{}.draws;  // --rerender: noise draws per frame, pooled
+  bool draws_given = false;
 };
 
 // A recording: DIR/depth (as `linksight render` writes), DIR/frames, or DIR itself; the
 // intrinsics beside the frames' folder unless given.
 // `half`: of its frames (take_half).
 sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, const char* role,
-                        const std::string& half, const sim::NoiseParams* rerender = nullptr) {
+                        const std::string& half, const sim::NoiseParams* rerender = nullptr,
+                        int draws = 1) {
   try {
     fs::path frames = dir, k = intrinsics;
     std::error_code ec;
@@ -54,7 +57,7 @@ sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, c
     try {
       // The recording's own surfaces through the simulated camera: same geometry, so
       // what differs is the sensor model.
-      if (rerender != nullptr) images = sim::rerender_surfaces(images, K, *rerender, 1);
+      if (rerender != nullptr) images = sim::rerender_surfaces(images, K, *rerender, 1, draws);
       return sim::depth_stats(images, K);
     } catch (const std::invalid_argument& e) {
       throw io::InputError(dir + ": " + e.what());
@@ -143,10 +146,12 @@ int run_fidelity(const FidelityOptions& o) {
   const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real", o.half);
   if (o.rerender == !o.sim.empty())
     throw io::InputError("fidelity: give either --sim DIR or --rerender");
+  if (o.draws_given && !o.rerender)
+    throw io::InputError("--draws: only --rerender draws the noise (a --sim recording is read as it is)");
   sim::NoiseParams noise = sim::NoiseParams::sr300();
   if (!o.noise_scene.empty()) noise = sim::load_scene(o.noise_scene).noise;
   const sim::DepthStats simulated =
-      o.rerender ? measure(o.real, o.real_intrinsics, "rerender", o.half, &noise)
+      o.rerender ? measure(o.real, o.real_intrinsics, "rerender", o.half, &noise, o.draws)
                  : measure(o.sim, o.sim_intrinsics, "sim", "all");
   const std::vector<Row> table = rows(real, simulated);
   std::ostringstream text;
@@ -161,8 +166,11 @@ int run_fidelity(const FidelityOptions& o) {
                       {"sim", json_number(r.sim)}, {"ratio", json_number(ratio)}});
   }
   io::write_file_atomic(out.path() / "fidelity.txt", [&](std::ostream& f) { f << text.str(); });
+  // draws: how many noise draws of each frame the re-rendered side pools (1 for a --sim
+  // recording, read as it is).
   const nlohmann::json j = {{"real", o.real}, {"half", o.half},
-                            {"sim", o.rerender ? "rerender" : o.sim}, {"rows", j_rows},
+                            {"sim", o.rerender ? "rerender" : o.sim},
+                            {"draws", o.rerender ? o.draws : 1}, {"rows", j_rows},
                             {"series", {{"real", stats_series(real)}, {"sim", stats_series(simulated)}}}};
   io::write_file_atomic(out.path() / "fidelity.json", [&](std::ostream& f) { f << j.dump(1) << "\n"; });
   // Figures into the staging directory, so the output appears whole; a failed plot is a
@@ -197,10 +205,19 @@ Runner add_fidelity(CLI::App& app) {
   app.add_option("--out", o->out, "output directory (fidelity.txt, fidelity.json, figures/)")
       ->required();
   add_half_option(app, o->half, "--real (and what --rerender renders of it; a --sim recording is read whole)");
+  CLI::Option* draws =
+      app.add_option("--draws", o->draws,
+                     "--rerender: noise draws of each frame, read together (the model's "
+                     "expected statistics, as calibrate-noise fits them)")
+          ->check(CLI::Range(1, 64))
+          ->capture_default_str();
   app.add_flag("--force", o->force, "replace an existing output directory");
   app.add_flag("--no-figures", o->no_figures, "skip the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
-  return [o] { return run_fidelity(*o); };
+  return [o, draws] {
+    o->draws_given = draws->count() > 0;
+    return run_fidelity(*o);
+  };
 }
 
 }  // namespace linksight::cli

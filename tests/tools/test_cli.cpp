@@ -29,6 +29,7 @@
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/ply.hpp"
 #include "linksight/io/intrinsics.hpp"
+#include "linksight/sim/depth_stats.hpp"
 #include "linksight/sim/recording.hpp"
 #include "linksight/sim/scene.hpp"
 #include "linksight/sim/score.hpp"
@@ -206,9 +207,9 @@ TEST_F(Cli, RunPrintSceneWritesTheResolvedScene) {
                        "--print-scene --out " + out.string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_FALSE(fs::exists(out));
-  EXPECT_NE(r.out.find("\nnoise:\n  axial:\n    enabled: true\n    a_m: 0.000298\n"),
+  EXPECT_NE(r.out.find("\nnoise:\n  axial:\n    enabled: true\n    a_m: 0.000326\n"),
             std::string::npos)
-      << r.out;  // the preset's 0.149 mm, scaled: every field in full
+      << r.out;  // the preset's 0.163 mm, scaled: every field in full
   EXPECT_NE(r.out.find("\n  mode: accelerated-som\n"), std::string::npos) << r.out;
   fs::create_directories(dir / "elsewhere");
   std::ofstream(dir / "elsewhere" / "resolved.yaml") << r.out;
@@ -1661,18 +1662,18 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   EXPECT_EQ(matern.low_share, 0.0);
   EXPECT_GE(matern.correlation_px, sim::kMinMaternRangePx);
   EXPECT_GT(matern.correlation_cols_px, matern.correlation_px);
-  // The two-scale structure, fitted by re-rendering the frames (one sweep here; the default
-  // 12 take about 40 s on these 11 frames): a block a scene accepts, the low field without
-  // the angle term, max_incidence fitted.
+  // The two-scale structure, fitted by re-rendering the frames (one sweep of 2 draws here;
+  // the default 12 sweeps of 4 draws take about 2 min on these 11 frames): a block a scene
+  // accepts, the low field without the angle term, max_incidence fitted, the draws noted.
   const fs::path scaled = dir / "two-scale.yaml";
-  const CliRun r3 = run("calibrate-noise --structure two-scale --sweeps 1 --quiet --input " +
+  const CliRun r3 = run("calibrate-noise --structure two-scale --sweeps 1 --draws 2 --quiet --input " +
                             (real / "frames").string() + " --intrinsics " +
                             (real / "intrinsics.json").string() + " --out " + scaled.string(),
                         dir);
   EXPECT_EQ(r3.code, 0) << r3.err;
   const std::string text3 = slurp_text(scaled);
   EXPECT_NE(
-      text3.find("# note: two-scale structure by re-rendering 11 frames (12 renders, 1 sweeps)"),
+      text3.find("# note: two-scale structure by re-rendering 11 frames, 2 draws each (12 renders, 1 sweeps)"),
       std::string::npos)
       << text3;
   EXPECT_NE(text3.find("# note: lateral.sigma_px and dropouts.min_signal kept"), std::string::npos) << text3;
@@ -1697,6 +1698,11 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
                  "--sweeps");
   expect_refused("calibrate-noise --sweeps 3 --input " + (real / "frames").string() + k,
                  "--sweeps: only the two-scale structure searches (--structure one-field)");
+  expect_refused("calibrate-noise --draws 2 --input " + (real / "frames").string() + k,
+                 "--draws: only the two-scale structure re-renders (--structure one-field)");
+  expect_refused("calibrate-noise --structure two-scale --draws 0 --input " +
+                     (real / "frames").string() + k,
+                 "--draws");
   // Intrinsics that do not match the frames.
   io::Intrinsics small;
   small.width = 32;
@@ -1757,6 +1763,7 @@ background:
   std::ifstream in2(out2 / "fidelity.json");
   const nlohmann::json j2 = nlohmann::json::parse(in2);
   EXPECT_EQ(j2["sim"], "rerender");
+  EXPECT_EQ(j2["draws"], sim::RerenderFitParams{}.draws);
   EXPECT_EQ(fidelity_row(j2, "projector side (-1 left, +1 right)")["sim"], -1.0);
   // An existing output is kept unless --force; a missing recording is named.
   r = run("fidelity --real " + real.string() + " --sim " + (dir / "sim").string() +
@@ -1769,6 +1776,11 @@ background:
   expect_refused("fidelity --real " + real.string() + " --rerender --sim " + (dir / "sim").string() +
                      " --no-figures",
                  "either --sim DIR or --rerender");
+  expect_refused("fidelity --real " + real.string() + " --sim " + (dir / "sim").string() +
+                     " --draws 2 --no-figures",
+                 "--draws: only --rerender draws the noise");
+  expect_refused("fidelity --real " + real.string() + " --rerender --draws 0 --no-figures",
+                 "--draws");
   expect_refused("fidelity --real " + (dir / "nowhere").string() + " --sim " +
                      (dir / "sim").string() + " --no-figures",
                  "nowhere");

@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "linksight/sim/sensor.hpp"
+#include "linksight/sim/sensor_noise.hpp"
 #include "surface_render.hpp"
 #include "linksight/tracker/quantile.hpp"
 
@@ -727,10 +728,28 @@ SurfaceRender render_surface(const io::DepthImage& depth, const io::Intrinsics& 
 
 std::vector<io::DepthImage> rerender_surfaces(const std::vector<io::DepthImage>& frames,
                                               const io::Intrinsics& K, const NoiseParams& noise,
-                                              std::uint64_t seed, const DepthSurfaceParams& surface) {
-  std::vector<io::DepthImage> out;
-  for (std::size_t f = 0; f < frames.size(); ++f)
-    out.push_back(std::move(render_surface(frames[f], K, noise, seed, f, surface).frame.depth));
+                                              std::uint64_t seed, int draws,
+                                              const DepthSurfaceParams& surface) {
+  if (draws < 1)
+    throw std::invalid_argument("rerender_surfaces: draws = " + std::to_string(draws) +
+                                ": must be >= 1");
+  const std::size_t n = frames.size();
+  std::vector<io::DepthImage> out(n * static_cast<std::size_t>(draws));
+  CameraParams camera;
+  camera.intrinsics = K;
+  std::vector<float> depth_m;
+  for (std::size_t f = 0; f < n; ++f) {
+    SurfaceRender r = render_surface(frames[f], K, noise, seed, f, surface);
+    // Further draws re-apply the noise to this render's cast, as fit_noise_rerendered does
+    // (the sensor's own render is SensorNoise::apply on it), so both read the same images.
+    if (draws > 1) {
+      SensorNoise redraw(noise, camera);
+      const NoiseInput in = r.sensor->last_noise_input(r.frame);
+      for (int d = 1; d < draws; ++d)
+        redraw.apply(in, seed, d * n + f, 0, out[d * n + f], depth_m);
+    }
+    out[f] = std::move(r.frame.depth);
+  }
   return out;
 }
 

@@ -148,6 +148,9 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
   if (params.sweeps < 0)
     throw std::invalid_argument("fit_noise_rerendered: sweeps = " + std::to_string(params.sweeps) +
                                 ": must be >= 0");
+  if (params.draws < 1)
+    throw std::invalid_argument("fit_noise_rerendered: draws = " + std::to_string(params.draws) +
+                                ": must be >= 1");
   NoiseFit fit = fit_noise(stats, start, shape, NoiseStructure::one_field);
   const NoiseParams base = fit.params;
   // The search fits max_incidence, which the one-field fit keeps.
@@ -163,15 +166,17 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
   }
   CameraParams camera;
   camera.intrinsics = K;
-  std::vector<io::DepthImage> images(frames.size());
+  // Draw-major, as rerender_surfaces returns its draws: the same images for the same model.
+  const std::size_t n = casts.size();
+  std::vector<io::DepthImage> images(n * static_cast<std::size_t>(params.draws));
   std::vector<float> depth_m;
   int evaluations = 0;
   const auto mismatch = [&](const Vec& x) {
     ++evaluations;
     try {
       SensorNoise noise(candidate(base, x), camera);
-      for (std::size_t f = 0; f < casts.size(); ++f)
-        noise.apply(casts[f].input(), params.seed, f, params.threads, images[f], depth_m);
+      for (std::size_t k = 0; k < images.size(); ++k)
+        noise.apply(casts[k % n].input(), params.seed, k, params.threads, images[k], depth_m);
       return target_mismatch(stats, depth_stats(images, K));
     } catch (const std::invalid_argument&) {
       // Out of the model's ranges, or too few windows left: not a candidate.
@@ -209,12 +214,13 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
   char line[640];
   std::snprintf(
       line, sizeof line,
-      "two-scale structure by re-rendering %zu frames (%d renders, %d sweeps): axial a, c "
+      "two-scale structure by re-rendering %zu frames, %d draw%s each (%d renders, %d "
+      "sweeps): axial a, c "
       "x%.3g and k_theta x%.3g of the one-field fit's, pixel-scale field %.2f x %.2f px "
       "with the angle term, low-frequency field %.2f x %.2f px with %.4f of a + c z^2, "
       "dropouts.max_incidence %.1f deg, hole rate x%.3g; target mismatch %.3g (start "
       "%.3g) over the issue-20 statistics",
-      frames.size(), evaluations, params.sweeps, x[0], x[1], ax.correlation_px,
+      frames.size(), params.draws, params.draws == 1 ? "" : "s", evaluations, params.sweeps, x[0], x[1], ax.correlation_px,
       ax.correlation_cols_px, ax.low_rows_px, ax.low_cols_px, ax.low_share, x[7], x[8], best.cost,
       start_cost);
   fit.notes.emplace_back(line);

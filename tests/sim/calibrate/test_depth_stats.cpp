@@ -354,7 +354,8 @@ HeldOutStats held_out(const std::vector<io::DepthImage>& all, const io::Intrinsi
                 .params
           : fit_noise(out.fit, NoiseParams::sr300_one_field(), &shape, structure).params;
   out.real = depth_stats(test_frames, K);
-  out.sim = depth_stats(rerender_surfaces(test_frames, K, fitted, 1), K);
+  // As many draws as the fit reads each candidate over: the model's expected statistics.
+  out.sim = depth_stats(rerender_surfaces(test_frames, K, fitted, 1, RerenderFitParams{}.draws), K);
   return out;
 }
 
@@ -636,7 +637,49 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
               (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
             }).find("sweeps = -1"),
             std::string::npos);
+  p.sweeps = 1;
+  p.draws = 0;
+  EXPECT_NE(test::error_of<std::invalid_argument>([&] {
+              (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
+            }).find("draws = 0"),
+            std::string::npos);
   EXPECT_EQ(parse_noise_structure("two-scale"), NoiseStructure::two_scale);
+}
+
+// rerender_surfaces' draws: draw 0 is the one-draw render, byte for byte, the others are
+// the same casts with fresh noise (every draw differs from every other), draw-major; the
+// pooled statistics count every draw (holes per frame over n x draws frames); draws < 1 is
+// refused by name.
+TEST(DepthStats, RerenderedDrawsStartWithTheOneDrawRender) {
+  io::Intrinsics K;
+  std::vector<io::DepthImage> frames = real_frames(K);
+  frames.resize(2);
+  const NoiseParams noise = NoiseParams::sr300();
+  const std::vector<io::DepthImage> one = rerender_surfaces(frames, K, noise, 5);
+  const std::vector<io::DepthImage> three = rerender_surfaces(frames, K, noise, 5, 3);
+  ASSERT_EQ(one.size(), 2u);
+  ASSERT_EQ(three.size(), 6u);
+  for (std::size_t f = 0; f < 2; ++f) {
+    EXPECT_EQ(three[f].data, one[f].data) << "frame " << f;
+    for (std::size_t d = 1; d < 3; ++d) {
+      const io::DepthImage& img = three[d * 2 + f];
+      EXPECT_EQ(img.width, one[f].width);
+      EXPECT_EQ(img.height, one[f].height);
+      EXPECT_NE(img.data, three[(d - 1) * 2 + f].data) << "frame " << f << ", draw " << d;
+      // The same surface: the valid pixels nearly all the same (holes and edges aside).
+      long both = 0, either = 0;
+      for (std::size_t k = 0; k < img.data.size(); ++k) {
+        both += img.data[k] != 0 && one[f].data[k] != 0;
+        either += img.data[k] != 0 || one[f].data[k] != 0;
+      }
+      EXPECT_GT(static_cast<double>(both), 0.95 * static_cast<double>(either)) << "draw " << d;
+    }
+  }
+  EXPECT_EQ(depth_stats(three, K).frames, 6);
+  EXPECT_NE(test::error_of<std::invalid_argument>([&] {
+              (void)rerender_surfaces(frames, K, noise, 5, 0);
+            }).find("draws = 0"),
+            std::string::npos);
 }
 
 // The estimator's reading of correlated noise: white reads white with the plane fit's own

@@ -188,10 +188,17 @@ inline constexpr FrameHalf kFrameHalves[] = {FrameHalf::all, FrameHalf::even, Fr
 /// `intrinsics` with `noise`, draws from (seed, frame index): the recording's geometry
 /// with the sensor model's artefacts instead of the camera's. With NoiseParams::off()
 /// (quantization kept) it measures what the surfaces' shape alone puts into the plane-fit
-/// sigma. Throws as depth_surface_mesh does.
+/// sigma. `draws` > 1 returns that many images of each frame, draw-major (image d n + f
+/// is frame f's draw d, n = frames.size(); draw 0 is the one-draw result): the noise
+/// model applied again to the same cast with the draws of frame index d n + f (the
+/// lateral jitter, part of the cast, is drawn once per frame), so that statistics read
+/// over all of them are the model's expectation rather than one draw's (a few hundred
+/// flying pixels or 60 holes move 10-15% between draws). Throws as depth_surface_mesh
+/// does, and std::invalid_argument for draws < 1.
 [[nodiscard]] std::vector<io::DepthImage> rerender_surfaces(
     const std::vector<io::DepthImage>& frames, const io::Intrinsics& intrinsics,
-    const NoiseParams& noise, std::uint64_t seed, const DepthSurfaceParams& surface = {});
+    const NoiseParams& noise, std::uint64_t seed, int draws = 1,
+    const DepthSurfaceParams& surface = {});
 
 /// What the window estimator of depth_stats reads from the unit-variance axial field of
 /// `axial` (its kernel, correlation widths and low-frequency share; the sigma terms do not
@@ -307,6 +314,9 @@ inline constexpr int kMinSimWindows = 5;
 struct RerenderFitParams {
   int sweeps = 12;         ///< pattern-search sweeps (at most 2 renders per parameter: 18)
   std::uint64_t seed = 1;  ///< of the renders' noise draws
+  /// Noise draws per frame that each candidate is read over, pooled (rerender_surfaces'
+  /// draws): the search then follows the model's expected statistics, not one draw's.
+  int draws = 4;
   int threads = 0;         ///< OpenMP threads of each render (0: the default); any gives the same fit
 };
 /// The `two_scale` structure fitted to a recording by simulation: `frames` (with their
