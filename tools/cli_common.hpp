@@ -174,6 +174,18 @@ inline CLI::Option* add_half_option(CLI::App& app, std::string& half, const std:
       ->capture_default_str();
 }
 
+/// The --draws option (sim::RerenderFitParams::draws, rerender_surfaces' draws): noise draws
+/// of each frame read together, 1-64; `what` says where it applies. Returned so that a
+/// command can refuse it where it does not apply.
+inline CLI::Option* add_draws_option(CLI::App& app, int& draws, const std::string& what) {
+  return app
+      .add_option("--draws", draws,
+                  what + ": noise draws of each frame read together, so that the statistics "
+                         "are the model's expectation rather than one draw's")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+}
+
 /// Degrees per radian: the reports' unit for angles (code keeps radians).
 inline constexpr double kDegPerRad = 180.0 / 3.14159265358979323846;
 

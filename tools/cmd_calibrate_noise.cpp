@@ -327,12 +327,7 @@ Runner add_calibrate_noise(CLI::App& app) {
                      "two-scale: pattern-search sweeps (each re-renders the frames 18 times)")
           ->check(CLI::Range(0, 1000))
           ->capture_default_str();
-  CLI::Option* draws =
-      app.add_option("--draws", o->draws,
-                     "two-scale: noise draws of each frame that every candidate is read over "
-                     "(the search follows the model's expected statistics, not one draw's)")
-          ->check(CLI::Range(1, 64))
-          ->capture_default_str();
+  CLI::Option* draws = add_draws_option(app, o->draws, "two-scale: every candidate of the search");
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");

@@ -206,11 +206,7 @@ Runner add_fidelity(CLI::App& app) {
       ->required();
   add_half_option(app, o->half, "--real (and what --rerender renders of it; a --sim recording is read whole)");
   CLI::Option* draws =
-      app.add_option("--draws", o->draws,
-                     "--rerender: noise draws of each frame, read together (the model's "
-                     "expected statistics, as calibrate-noise fits them)")
-          ->check(CLI::Range(1, 64))
-          ->capture_default_str();
+      add_draws_option(app, o->draws, "--rerender (as calibrate-noise fits them)");
   app.add_flag("--force", o->force, "replace an existing output directory");
   app.add_flag("--no-figures", o->no_figures, "skip the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
