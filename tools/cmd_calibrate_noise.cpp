@@ -226,6 +226,14 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
 }
 
 int run_calibrate(const CalibrateOptions& o) {
+  // Options that do not apply are refused before any frame is read.
+  const sim::NoiseStructure structure = sim::parse_noise_structure(o.structure);
+  if (o.sweeps_given && structure != sim::NoiseStructure::two_scale)
+    throw io::InputError("--sweeps: only the two-scale structure searches (--structure " +
+                         o.structure + ")");
+  if (o.draws_given && structure != sim::NoiseStructure::two_scale)
+    throw io::InputError("--draws: only the two-scale structure re-renders (--structure " +
+                         o.structure + ")");
   const io::Intrinsics K = io::read_intrinsics(o.intrinsics);
   const std::vector<io::DepthImage> frames =
       take_half(read_depth_frames(o.input, K, o.intrinsics, "calibrate-noise"), K, o.half,
@@ -249,13 +257,6 @@ int run_calibrate(const CalibrateOptions& o) {
     }
   }
   const sim::DepthStats* shape_p = o.no_shape_correction ? nullptr : &shape;
-  const sim::NoiseStructure structure = sim::parse_noise_structure(o.structure);
-  if (o.sweeps_given && structure != sim::NoiseStructure::two_scale)
-    throw io::InputError("--sweeps: only the two-scale structure searches (--structure " +
-                         o.structure + ")");
-  if (o.draws_given && structure != sim::NoiseStructure::two_scale)
-    throw io::InputError("--draws: only the two-scale structure re-renders (--structure " +
-                         o.structure + ")");
   sim::NoiseFit fit;
   if (structure == sim::NoiseStructure::two_scale) {
     sim::RerenderFitParams p;

@@ -57,7 +57,8 @@ sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, c
     try {
       // The recording's own surfaces through the simulated camera: same geometry, so
       // what differs is the sensor model.
-      if (rerender != nullptr) images = sim::rerender_surfaces(images, K, *rerender, 1, draws);
+      if (rerender != nullptr)
+        images = sim::rerender_surfaces(images, K, *rerender, sim::kCompareSeed, draws);
       return sim::depth_stats(images, K);
     } catch (const std::invalid_argument& e) {
       throw io::InputError(dir + ": " + e.what());
@@ -142,12 +143,15 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
 }
 
 int run_fidelity(const FidelityOptions& o) {
-  io::StagedDir out(o.out, o.force);  // refuses an existing --out before any work
-  const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real", o.half);
   if (o.rerender == !o.sim.empty())
     throw io::InputError("fidelity: give either --sim DIR or --rerender");
+  if (!o.noise_scene.empty() && !o.rerender)
+    throw io::InputError("--noise-scene: only --rerender renders with it (a --sim recording has "
+                         "its own noise)");
   if (o.draws_given && !o.rerender)
     throw io::InputError("--draws: only --rerender draws the noise (a --sim recording is read as it is)");
+  io::StagedDir out(o.out, o.force);  // refuses an existing --out before any work
+  const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real", o.half);
   sim::NoiseParams noise = sim::NoiseParams::sr300();
   if (!o.noise_scene.empty()) noise = sim::load_scene(o.noise_scene).noise;
   const sim::DepthStats simulated =

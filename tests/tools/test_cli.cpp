@@ -1764,6 +1764,17 @@ background:
   const nlohmann::json j2 = nlohmann::json::parse(in2);
   EXPECT_EQ(j2["sim"], "rerender");
   EXPECT_EQ(j2["draws"], sim::RerenderFitParams{}.draws);
+  // One draw reads other figures than the default's pooled draws.
+  const fs::path out3 = dir / "rerender1";
+  r = run("fidelity --real " + real.string() + " --rerender --draws 1 --no-figures --out " +
+              out3.string(),
+          dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream in3(out3 / "fidelity.json");
+  const nlohmann::json j3 = nlohmann::json::parse(in3);
+  EXPECT_EQ(j3["draws"], 1);
+  EXPECT_NE(fidelity_row(j3, "holes per frame")["sim"], fidelity_row(j2, "holes per frame")["sim"]);
+  EXPECT_EQ(fidelity_row(j3, "holes per frame")["real"], fidelity_row(j2, "holes per frame")["real"]);
   EXPECT_EQ(fidelity_row(j2, "projector side (-1 left, +1 right)")["sim"], -1.0);
   // An existing output is kept unless --force; a missing recording is named.
   r = run("fidelity --real " + real.string() + " --sim " + (dir / "sim").string() +
@@ -1781,6 +1792,9 @@ background:
                  "--draws: only --rerender draws the noise");
   expect_refused("fidelity --real " + real.string() + " --rerender --draws 0 --no-figures",
                  "--draws");
+  expect_refused("fidelity --real " + real.string() + " --sim " + (dir / "sim").string() +
+                     " --noise-scene " + (dir / "sim.yaml").string() + " --no-figures",
+                 "--noise-scene: only --rerender renders with it");
   expect_refused("fidelity --real " + (dir / "nowhere").string() + " --sim " +
                      (dir / "sim").string() + " --no-figures",
                  "nowhere");

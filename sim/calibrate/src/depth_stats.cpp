@@ -713,8 +713,7 @@ SurfaceRender render_surface(const io::DepthImage& depth, const io::Intrinsics& 
   b.shape.kind = Shape::Kind::mesh;
   b.shape.mesh_data = std::make_shared<const TriangleMesh>(depth_surface_mesh(depth, K, surface));
   SensorParams p;
-  p.camera.intrinsics = K;
-  p.camera.X_WC = Eigen::Isometry3d::Identity();
+  p.camera = surface_camera(K);
   p.noise = noise;
   const ComponentGeometry g;
   SurfaceRender out;
@@ -735,20 +734,18 @@ std::vector<io::DepthImage> rerender_surfaces(const std::vector<io::DepthImage>&
                                 ": must be >= 1");
   const std::size_t n = frames.size();
   std::vector<io::DepthImage> out(n * static_cast<std::size_t>(draws));
-  CameraParams camera;
-  camera.intrinsics = K;
+  SensorNoise redraw(noise, surface_camera(K));
   std::vector<float> depth_m;
   for (std::size_t f = 0; f < n; ++f) {
     SurfaceRender r = render_surface(frames[f], K, noise, seed, f, surface);
     // Further draws re-apply the noise to this render's cast, as fit_noise_rerendered does
     // (the sensor's own render is SensorNoise::apply on it), so both read the same images.
-    if (draws > 1) {
-      SensorNoise redraw(noise, camera);
-      const NoiseInput in = r.sensor->last_noise_input(r.frame);
-      for (int d = 1; d < draws; ++d)
-        redraw.apply(in, seed, d * n + f, 0, out[d * n + f], depth_m);
+    const NoiseInput in = r.sensor->last_noise_input(r.frame);
+    for (std::size_t d = 1; d < static_cast<std::size_t>(draws); ++d) {
+      const std::size_t k = draw_index(n, d, f);
+      redraw.apply(in, seed, k, 0, out[k], depth_m);
     }
-    out[f] = std::move(r.frame.depth);
+    out[draw_index(n, 0, f)] = std::move(r.frame.depth);
   }
   return out;
 }

@@ -164,8 +164,7 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
         render_surface(frames[f], K, base, params.seed, f, DepthSurfaceParams{});
     casts.emplace_back(r.sensor->last_noise_input(r.frame));
   }
-  CameraParams camera;
-  camera.intrinsics = K;
+  const CameraParams camera = surface_camera(K);
   // Draw-major, as rerender_surfaces returns its draws: the same images for the same model.
   const std::size_t n = casts.size();
   std::vector<io::DepthImage> images(n * static_cast<std::size_t>(params.draws));
@@ -175,8 +174,11 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
     ++evaluations;
     try {
       SensorNoise noise(candidate(base, x), camera);
-      for (std::size_t k = 0; k < images.size(); ++k)
-        noise.apply(casts[k % n].input(), params.seed, k, params.threads, images[k], depth_m);
+      for (std::size_t d = 0; d < static_cast<std::size_t>(params.draws); ++d)
+        for (std::size_t f = 0; f < n; ++f) {
+          const std::size_t k = draw_index(n, d, f);
+          noise.apply(casts[f].input(), params.seed, k, params.threads, images[k], depth_m);
+        }
       return target_mismatch(stats, depth_stats(images, K));
     } catch (const std::invalid_argument&) {
       // Out of the model's ranges, or too few windows left: not a candidate.

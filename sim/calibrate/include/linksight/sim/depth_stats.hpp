@@ -199,6 +199,11 @@ inline constexpr FrameHalf kFrameHalves[] = {FrameHalf::all, FrameHalf::even, Fr
     const std::vector<io::DepthImage>& frames, const io::Intrinsics& intrinsics,
     const NoiseParams& noise, std::uint64_t seed, int draws = 1,
     const DepthSurfaceParams& surface = {});
+/// The seed of a comparison's draws (`fidelity --rerender`, the held-out tests): not the
+/// fit's (RerenderFitParams::seed, 1), so that a comparison, in sample or held out, never
+/// reads the draws a fit was tuned on (the same seed and frame keys give the same holes and
+/// white noise in image coordinates, whatever the frames).
+inline constexpr std::uint64_t kCompareSeed = 2;
 
 /// What the window estimator of depth_stats reads from the unit-variance axial field of
 /// `axial` (its kernel, correlation widths and low-frequency share; the sigma terms do not
