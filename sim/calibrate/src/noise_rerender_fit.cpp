@@ -222,9 +222,9 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
       "with the angle term, low-frequency field %.2f x %.2f px with %.4f of a + c z^2, "
       "dropouts.max_incidence %.1f deg, hole rate x%.3g; target mismatch %.3g (start "
       "%.3g) over the issue-20 statistics",
-      frames.size(), params.draws, params.draws == 1 ? "" : "s", evaluations, params.sweeps, x[0], x[1], ax.correlation_px,
-      ax.correlation_cols_px, ax.low_rows_px, ax.low_cols_px, ax.low_share, x[7], x[8], best.cost,
-      start_cost);
+      frames.size(), params.draws, params.draws == 1 ? "" : "s", evaluations, params.sweeps,
+      x[0], x[1], ax.correlation_px, ax.correlation_cols_px, ax.low_rows_px, ax.low_cols_px,
+      ax.low_share, x[7], x[8], best.cost, start_cost);
   fit.notes.emplace_back(line);
   std::string out = "outside 0.8-1.25 on the fitted frames:";
   for (const std::string& o : best.outside) out += " " + o + ";";

@@ -14,6 +14,7 @@
 #include <random>
 #include <string>
 #include <tuple>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -593,23 +594,51 @@ TEST(DepthStats, TargetMismatchCountsTheIssuesStatistics) {
             std::string::npos);
 }
 
+// The first two shared frames and their statistics: enough for a fit's mechanics.
+struct TwoFrames {
+  io::Intrinsics K;
+  std::vector<io::DepthImage> frames;
+  DepthStats stats;
+};
+TwoFrames two_frames() {
+  TwoFrames t;
+  t.frames = real_frames(t.K);
+  t.frames.resize(2);
+  t.stats = depth_stats(t.frames, t.K);
+  return t;
+}
+
+// The two-scale fit's note, "... target mismatch X (start Y) ...": {X, Y}; NaN, and a
+// failure, where there is no such note.
+std::pair<double, double> noted_mismatch(const NoiseFit& fit) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const std::string& n : fit.notes) {
+    if (n.rfind("two-scale structure", 0) != 0) continue;
+    double cost = nan, start = nan;
+    const std::size_t at = n.find("target mismatch ");
+    if (at == std::string::npos ||
+        std::sscanf(n.c_str() + at, "target mismatch %lf (start %lf)", &cost, &start) != 2)
+      ADD_FAILURE() << "no target mismatch in: " << n;
+    return {cost, start};
+  }
+  ADD_FAILURE() << "no two-scale note";
+  return {nan, nan};
+}
+
 // fit_noise_rerendered on two of the shared frames, one sweep: the pattern search only
 // keeps improvements, so the fit costs no more than its start (the note gives both), the
 // fitted block is the two-scale structure a scene accepts, and 1 and 2 threads give the
 // same fit; fit_noise refuses the structure it cannot fit.
 TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
-  io::Intrinsics K;
-  std::vector<io::DepthImage> frames = real_frames(K);
-  frames.resize(2);
-  const DepthStats s = depth_stats(frames, K);
+  const TwoFrames t = two_frames();
   RerenderFitParams p;
   p.sweeps = 1;
   p.threads = 1;
   const NoiseFit one =
-      fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
+      fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
   p.threads = 2;
   const NoiseFit two =
-      fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
+      fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
   EXPECT_EQ(noise_yaml(one.params), noise_yaml(two.params));
   EXPECT_EQ(one.notes, two.notes);
   const AxialNoise& ax = one.params.axial;
@@ -617,32 +646,25 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   EXPECT_GT(ax.low_share, 0.0);
   EXPECT_EQ(ax.kernel, AxialKernel::gaussian);
   one.params.validate();
-  // "... target mismatch X (start Y) ...": X <= Y, and Y > 0 (the start is not the fit).
-  std::string note;
-  for (const std::string& n : one.notes)
-    if (n.rfind("two-scale structure", 0) == 0) note = n;
-  ASSERT_FALSE(note.empty());
-  const std::size_t at = note.find("target mismatch ");
-  ASSERT_NE(at, std::string::npos) << note;
-  double cost = -1, start = -1;
-  ASSERT_EQ(std::sscanf(note.c_str() + at, "target mismatch %lf (start %lf)", &cost, &start), 2) << note;
+  // "... target mismatch X (start Y) ...": X < Y (the start is not the fit).
+  const auto [cost, start] = noted_mismatch(one);
   EXPECT_LT(cost, start) << "one sweep of up to 18 renders found nothing better than the start";
   for (const std::string& n : one.notes)
     EXPECT_EQ(n.find("max_incidence, min_signal kept"), std::string::npos) << n;
   EXPECT_NE(test::error_of<std::invalid_argument>([&] {
-              (void)fit_noise(s, NoiseParams::sr300_one_field(), nullptr,
+              (void)fit_noise(t.stats, NoiseParams::sr300_one_field(), nullptr,
                               NoiseStructure::two_scale);
             }).find("fit_noise_rerendered"),
             std::string::npos);
   p.sweeps = -1;
   EXPECT_NE(test::error_of<std::invalid_argument>([&] {
-              (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
+              (void)fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
             }).find("sweeps = -1"),
             std::string::npos);
   p.sweeps = 1;
   p.draws = 0;
   EXPECT_NE(test::error_of<std::invalid_argument>([&] {
-              (void)fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
+              (void)fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
             }).find("draws = 0"),
             std::string::npos);
   EXPECT_EQ(parse_noise_structure("two-scale"), NoiseStructure::two_scale);
@@ -653,9 +675,9 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
 // pooled statistics count every draw (holes per frame over n x draws frames); draws < 1 is
 // refused by name.
 TEST(DepthStats, RerenderedDrawsStartWithTheOneDrawRender) {
-  io::Intrinsics K;
-  std::vector<io::DepthImage> frames = real_frames(K);
-  frames.resize(2);
+  const TwoFrames t = two_frames();
+  const io::Intrinsics& K = t.K;
+  const std::vector<io::DepthImage>& frames = t.frames;
   const NoiseParams noise = NoiseParams::sr300();
   const std::vector<io::DepthImage> one = rerender_surfaces(frames, K, noise, 5);
   const std::vector<io::DepthImage> three = rerender_surfaces(frames, K, noise, 5, 3);
@@ -693,29 +715,21 @@ TEST(DepthStats, RerenderedDrawsStartWithTheOneDrawRender) {
 // sweep the fit is its start, and the mismatch its note gives is what the same model's
 // draws read (the same casts, frame keys and seed).
 TEST(DepthStats, RerenderedFitReadsWhatRerenderSurfacesReturns) {
-  io::Intrinsics K;
-  std::vector<io::DepthImage> frames = real_frames(K);
-  frames.resize(2);
-  const DepthStats s = depth_stats(frames, K);
+  const TwoFrames t = two_frames();
   RerenderFitParams p;
   p.sweeps = 0;
   p.draws = 2;
-  const NoiseFit fit = fit_noise_rerendered(frames, K, s, nullptr, NoiseParams::sr300_one_field(), p);
-  std::string note;
-  for (const std::string& n : fit.notes)
-    if (n.rfind("two-scale structure", 0) == 0) note = n;
-  const std::size_t at = note.find("target mismatch ");
-  ASSERT_NE(at, std::string::npos) << note;
-  double cost = -1;
-  ASSERT_EQ(std::sscanf(note.c_str() + at, "target mismatch %lf", &cost), 1) << note;
+  const NoiseFit fit = fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
+  const double cost = noted_mismatch(fit).first;
+  ASSERT_GT(cost, 0);
   const double read =
-      target_mismatch(s, depth_stats(rerender_surfaces(frames, K, fit.params, p.seed, 2), K)).cost;
-  EXPECT_NEAR(read, cost, 0.005 * cost) << note;  // the note gives 3 digits
+      target_mismatch(t.stats, depth_stats(rerender_surfaces(t.frames, t.K, fit.params, p.seed, 2), t.K)).cost;
+  EXPECT_NEAR(read, cost, 0.005 * cost);  // the note gives 3 digits
   // Another seed's draws read differently: the comparison is not the fit's draws again.
   const double other =
-      target_mismatch(s, depth_stats(rerender_surfaces(frames, K, fit.params, kCompareSeed, 2), K))
+      target_mismatch(t.stats, depth_stats(rerender_surfaces(t.frames, t.K, fit.params, kCompareSeed, 2), t.K))
           .cost;
-  EXPECT_NE(other, read);  // 157 against 117 on these frames
+  EXPECT_NE(other, read);  // 157 against 117 on these t.frames
 }
 
 // The estimator's reading of correlated noise: white reads white with the plane fit's own
