@@ -3,14 +3,20 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <initializer_list>
+#include <limits>
+#include <map>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "linksight/sim/synthetic_chain.hpp"
 #include "linksight/tracker/backend.hpp"
+#include "linksight/tracker/fields.hpp"
 #include "linksight/tracker/init.hpp"
 #include "linksight/tracker/opencl.hpp"
 #include "linksight/tracker/tracker.hpp"
@@ -141,6 +147,50 @@ std::string error_of(F&& f) {
     return e.what();
   }
   return "no error";
+}
+
+/// Every number and flag a parameter struct lists (fields.hpp), by its key path
+/// ("axial.a_m"), as the struct holds it (SI units, whatever the file's unit): so that a
+/// test compares two parameter sets by the keys a scene file uses, not by a second list
+/// of members.
+class NumberFields {
+ public:
+  template <fields::HasFields T>
+  explicit NumberFields(T x) {
+    x.fields(*this);
+  }
+  template <class V, class... Rules>
+  void operator()(const char* key, V& v, Rules&&...) {
+    if constexpr (std::is_arithmetic_v<V>) {
+      values_[prefix_ + key] = static_cast<double>(v);
+    } else if constexpr (fields::HasFields<V>) {
+      const std::string outer = prefix_;
+      prefix_ += std::string(key) + ".";
+      v.fields(*this);
+      prefix_ = outer;
+    }
+  }
+  /// The value at `key`; a test failure naming it (and NaN) where the struct has none.
+  [[nodiscard]] double at(const std::string& key) const {
+    const auto it = values_.find(key);
+    if (it != values_.end()) return it->second;
+    ADD_FAILURE() << "no field " << key;
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+
+ private:
+  std::string prefix_;
+  std::map<std::string, double> values_;
+};
+
+/// Expects each of `keys` (NumberFields' paths) in `fitted` within rel_tol of its value in
+/// `expected`, naming the key where it is not.
+template <fields::HasFields T>
+void expect_fields_near(const T& fitted, const T& expected, std::initializer_list<const char*> keys,
+                        double rel_tol) {
+  const NumberFields f(fitted), e(expected);
+  for (const char* key : keys)
+    EXPECT_NEAR(f.at(key), e.at(key), rel_tol * std::abs(e.at(key))) << key;
 }
 
 /// A tracker's one-component slip after a re-initialization (node j on ball j - 1; see

@@ -1615,29 +1615,14 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   expect_stats_figures(dir / "report" / "figures");
   // The sr300-one-field preset is this command's output on these frames, rounded (docs/sensor.md):
   // a fit that moves away from it means the preset is stale.
-  const sim::NoiseParams preset = sim::NoiseParams::sr300_one_field();
   constexpr double kPresetRelTol = 0.05;
-  const sim::NoiseParams& fitted = scene.noise;
-  const struct {
-    const char* what;
-    double fitted, preset;
-  } terms[] = {
-      {"axial.a", fitted.axial.a, preset.axial.a},
-      {"axial.c", fitted.axial.c, preset.axial.c},
-      {"axial.k_theta", fitted.axial.k_theta, preset.axial.k_theta},
-      {"axial.correlation_px", fitted.axial.correlation_px, preset.axial.correlation_px},
-      {"shadow.baseline", fitted.shadow.baseline, preset.shadow.baseline},
-      {"edges.band_p1", fitted.edges.band_p1, preset.edges.band_p1},
-      {"edges.band_p2", fitted.edges.band_p2, preset.edges.band_p2},
-      {"edges.p_flying", fitted.edges.p_flying, preset.edges.p_flying},
-      {"edges.flying_position", fitted.edges.flying_position, preset.edges.flying_position},
-      {"edges.flying_spread", fitted.edges.flying_spread, preset.edges.flying_spread},
-      {"dropouts.hole_rate", fitted.dropouts.hole_rate, preset.dropouts.hole_rate},
-      {"dropouts.hole_median_px", fitted.dropouts.hole_median_px, preset.dropouts.hole_median_px},
-      {"dropouts.hole_p90_px", fitted.dropouts.hole_p90_px, preset.dropouts.hole_p90_px},
-  };
-  for (const auto& t : terms)
-    EXPECT_NEAR(t.fitted, t.preset, kPresetRelTol * std::abs(t.preset)) << t.what;
+  test::expect_fields_near(scene.noise, sim::NoiseParams::sr300_one_field(),
+                           {"axial.a_m", "axial.c_per_m", "axial.k_theta", "axial.correlation_px",
+                            "shadow.baseline_m", "edges.band_p1", "edges.band_p2",
+                            "edges.p_flying", "edges.flying_position", "edges.flying_spread",
+                            "dropouts.hole_rate", "dropouts.hole_median_px",
+                            "dropouts.hole_p90_px"},
+                           kPresetRelTol);
   // The two-term and Matern structures (docs/sensor.md): blocks a scene accepts, with
   // their fields and kernels.
   const auto structure_scene = [&](const std::string& structure) {
