@@ -87,7 +87,12 @@ Cloud remove_planes(const Cloud& cloud, const ExtractParams& params, std::uint64
       if (std::abs(best_n.dot(q) + best_d) < params.plane_threshold)
         cov += (q - mean) * (q - mean).transpose();
     }
-    const Eigen::Vector3d n = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    // Eigenvalues ascending: the normal's, then the narrower in-plane direction's. A uniform
+    // strip of width w has variance w^2 / 12 across it.
+    const double width = std::sqrt(12 * std::max(eig.eigenvalues()(1), 0.0) / static_cast<double>(n_in));
+    if (width < params.min_plane_width) break;
+    const Eigen::Vector3d n = eig.eigenvectors().col(0);
     std::vector<std::size_t> rest;
     rest.reserve(keep.size());
     for (std::size_t i : keep)

@@ -38,6 +38,12 @@ struct ExtractParams {
   int max_planes = 2;             ///< depth: planes removed at most (table, wall)
   double plane_threshold = 0.01;  ///< depth: inlier distance [m]
   double min_plane_fraction = 0.1;  ///< depth: a plane must hold this fraction of the points
+  /// depth: and span this much across its narrower in-plane direction (the width of a
+  /// uniform strip with its inliers' spread there) [m]. A row of the link's balls seen
+  /// from the front lies within plane_threshold of a plane for much of its 30 mm width
+  /// and can hold min_plane_fraction once the table drops out of view; a table or a wall
+  /// is wider. 0: any width.
+  double min_plane_width = 0.1;
   int ransac_iterations = 200;      ///< depth: hypotheses per plane
 
   /// The keys of the scene's `segmentation` block (fields.hpp); crop_min_m and
@@ -52,6 +58,7 @@ struct ExtractParams {
     ar("max_planes", max_planes, fields::in(0, 10));
     ar("plane_threshold_m", plane_threshold, fields::in(1e-5, 1));
     ar("min_plane_fraction", min_plane_fraction, fields::in(1e-3, 1));
+    ar("min_plane_width_m", min_plane_width, fields::in(0, 100));
     ar("ransac_iterations", ransac_iterations, fields::in(1, 100000));
   }
   void validate() const;  ///< throws fields::FieldError naming the key
@@ -65,7 +72,7 @@ struct ExtractParams {
 
 /// The planes step of the depth mode, usable on a real recording's cloud too: removes
 /// up to params.max_planes planes that each hold at least min_plane_fraction of the
-/// points. Deterministic for a given seed.
+/// points and are at least min_plane_width wide. Deterministic for a given seed.
 [[nodiscard]] Cloud remove_planes(const Cloud& cloud, const ExtractParams& params,
                                   std::uint64_t seed);
 
