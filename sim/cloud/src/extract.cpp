@@ -35,22 +35,69 @@ ExtractMode parse_extract_mode(std::string_view name) {
                               "' (expected truth or depth)");
 }
 
+// Whether the points `in` (within plane_threshold of the plane through `mean` with in-plane
+// axes e1, e2) are wider than `width` both ways: on a grid of cells of a fifth of it, they
+// must occupy a square of 7 x 7 cells (the usual dynamic programme over the cells). Points
+// in k cells in a row span more than k - 2 cells, so that takes more than `width` both ways;
+// a plane 7 cells (1.4 width) across always passes. A table or a wall does; a row of balls
+// (a strip a ball wide, bent or not), or such a row and a small object that happen to share
+// a plane, does not.
+bool covers_square(const std::vector<Eigen::Vector3d>& in, const Eigen::Vector3d& mean,
+                   const Eigen::Vector3d& e1, const Eigen::Vector3d& e2, double width) {
+  double lo1 = 1e300, hi1 = -1e300, lo2 = 1e300, hi2 = -1e300;
+  for (const Eigen::Vector3d& q : in) {
+    const double a = e1.dot(q - mean), b = e2.dot(q - mean);
+    lo1 = std::min(lo1, a), hi1 = std::max(hi1, a);
+    lo2 = std::min(lo2, b), hi2 = std::max(hi2, b);
+  }
+  if (hi1 - lo1 < width || hi2 - lo2 < width) return false;
+  // At most about 4 million cells: coarser cells only for a plane tens of metres wide.
+  constexpr double kMaxCells = 4e6;
+  const double cell = std::max(width / 5, std::sqrt((hi1 - lo1) * (hi2 - lo2) / kMaxCells));
+  const int side = static_cast<int>(std::ceil(width / cell - 1e-9)) + 2;
+  const int n1 = static_cast<int>((hi1 - lo1) / cell) + 1;
+  const int n2 = static_cast<int>((hi2 - lo2) / cell) + 1;
+  std::vector<int> run(static_cast<std::size_t>(n1) * n2, 0);  // occupied first, then the DP
+  for (const Eigen::Vector3d& q : in) {
+    const int i = std::min(n1 - 1, static_cast<int>((e1.dot(q - mean) - lo1) / cell));
+    const int j = std::min(n2 - 1, static_cast<int>((e2.dot(q - mean) - lo2) / cell));
+    run[static_cast<std::size_t>(j) * n1 + i] = 1;
+  }
+  for (int j = 0; j < n2; ++j)
+    for (int i = 0; i < n1; ++i) {
+      int& r = run[static_cast<std::size_t>(j) * n1 + i];
+      if (r == 0 || i == 0 || j == 0) continue;
+      r = 1 + std::min({run[static_cast<std::size_t>(j - 1) * n1 + i],
+                        run[static_cast<std::size_t>(j) * n1 + i - 1],
+                        run[static_cast<std::size_t>(j - 1) * n1 + i - 1]});
+      if (r >= side) return true;
+    }
+  return side <= 1 && !in.empty();
+}
+
 Cloud remove_planes(const Cloud& cloud, const ExtractParams& params, std::uint64_t seed) {
   params.validate();
   const std::size_t total = cloud.size();
   std::vector<std::size_t> keep(total);
   for (std::size_t i = 0; i < total; ++i) keep[i] = i;
+  // The points hypotheses are drawn from: `keep` less the inliers of planes refused for
+  // their width, which stay in the cloud.
+  std::vector<std::size_t> candidates = keep;
   auto point = [&](std::size_t i) {
     return Eigen::Vector3d(cloud.xyz[3 * i], cloud.xyz[3 * i + 1], cloud.xyz[3 * i + 2]);
   };
   std::uint64_t state = derive_seed(seed, "ransac");
   const double min_inliers = params.min_plane_fraction * static_cast<double>(total);
-  for (int plane = 0; plane < params.max_planes && keep.size() >= 3; ++plane) {
+  // A refused plane says nothing of a wider one with fewer points (the best plane can be
+  // the link), so the search goes on past it; each refusal takes at least min_inliers
+  // points out of the candidates, so it ends.
+  int removed = 0;
+  while (removed < params.max_planes && candidates.size() >= 3) {
     // Hypotheses are scored on a fixed-size random subset; the winner on all points.
-    const std::size_t m = std::min<std::size_t>(keep.size(), 4000);
+    const std::size_t m = std::min<std::size_t>(candidates.size(), 4000);
     std::vector<std::size_t> subset(m);
     for (std::size_t i = 0; i < m; ++i)
-      subset[i] = keep[static_cast<std::size_t>(unit_draw(state) * keep.size())];
+      subset[i] = candidates[static_cast<std::size_t>(unit_draw(state) * candidates.size())];
     Eigen::Vector3d best_n = Eigen::Vector3d::UnitZ();
     double best_d = 0;
     long best_count = -1;
@@ -71,33 +118,41 @@ Cloud remove_planes(const Cloud& cloud, const ExtractParams& params, std::uint64
       }
     }
     // Refit to the inliers (least squares), then split once more.
+    std::vector<Eigen::Vector3d> in;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    long n_in = 0;
-    for (std::size_t i : keep) {
-      if (std::abs(best_n.dot(point(i)) + best_d) < params.plane_threshold) {
-        mean += point(i);
-        ++n_in;
+    for (std::size_t i : candidates) {
+      const Eigen::Vector3d q = point(i);
+      if (std::abs(best_n.dot(q) + best_d) < params.plane_threshold) {
+        mean += q;
+        in.push_back(q);
       }
     }
-    if (n_in < 3 || static_cast<double>(n_in) < min_inliers) break;
-    mean /= static_cast<double>(n_in);
+    if (in.size() < 3 || static_cast<double>(in.size()) < min_inliers) break;
+    mean /= static_cast<double>(in.size());
     Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (std::size_t i : keep) {
-      const Eigen::Vector3d q = point(i);
-      if (std::abs(best_n.dot(q) + best_d) < params.plane_threshold)
-        cov += (q - mean) * (q - mean).transpose();
-    }
+    for (const Eigen::Vector3d& q : in) cov += (q - mean) * (q - mean).transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-    // Eigenvalues ascending: the normal's, then the narrower in-plane direction's. A uniform
-    // strip of width w has variance w^2 / 12 across it.
-    const double width = std::sqrt(12 * std::max(eig.eigenvalues()(1), 0.0) / static_cast<double>(n_in));
-    if (width < params.min_plane_width) break;
-    const Eigen::Vector3d n = eig.eigenvectors().col(0);
+    const Eigen::Vector3d n = eig.eigenvectors().col(0);  // eigenvalues ascending
+    const auto on_plane = [&](std::size_t i) {
+      return std::abs(n.dot(point(i) - mean)) < params.plane_threshold;
+    };
     std::vector<std::size_t> rest;
-    rest.reserve(keep.size());
+    if (params.min_plane_width > 0 &&
+        !covers_square(in, mean, eig.eigenvectors().col(1), eig.eigenvectors().col(2),
+                       params.min_plane_width)) {
+      for (std::size_t i : candidates)
+        if (!(std::abs(best_n.dot(point(i)) + best_d) < params.plane_threshold)) rest.push_back(i);
+      candidates.swap(rest);
+      continue;
+    }
+    ++removed;
     for (std::size_t i : keep)
-      if (!(std::abs(n.dot(point(i) - mean)) < params.plane_threshold)) rest.push_back(i);
+      if (!on_plane(i)) rest.push_back(i);
     keep.swap(rest);
+    rest.clear();
+    for (std::size_t i : candidates)
+      if (!on_plane(i)) rest.push_back(i);
+    candidates.swap(rest);
   }
   Cloud out;
   out.xyz.reserve(3 * keep.size());

@@ -460,16 +460,19 @@ TEST(DepthStats, HeldOutFidelityOfTheOneFieldFit) {
 
 // The staleness tests compare presets with test::expect_fields_near, by the keys a scene
 // file uses: those reach the members (in SI units, a degree key in radians), nested
-// blocks included, and a key no struct has is a failure, not a skipped comparison.
+// blocks included, and a key no struct has (or one that holds no number, as an enum) is a
+// failure, not a skipped comparison.
 TEST(DepthStats, PresetsAreComparedByTheirSceneKeys) {
   const NoiseParams p = NoiseParams::sr300();
   const test::NumberFields f(p);
   EXPECT_EQ(f.at("axial.a_m"), p.axial.a);
   EXPECT_EQ(f.at("dropouts.max_incidence_deg"), p.dropouts.max_incidence);
   EXPECT_EQ(f.at("axial.low_stride_px"), p.axial.low_stride_px);
-  EXPECT_EQ(f.at("edges.drop_steps"), 1.0);
-  EXPECT_EQ(f.at("quantize"), 1.0);
+  EXPECT_EQ(f.at("edges.drop_steps"), p.edges.drop_steps ? 1.0 : 0.0);
+  EXPECT_EQ(f.at("quantize"), p.quantize ? 1.0 : 0.0);
   EXPECT_NONFATAL_FAILURE((void)f.at("axial.a"), "no field axial.a");
+  EXPECT_NONFATAL_FAILURE(test::expect_fields_near(p, p, {"axial.a"}, 0.01), "no field axial.a");
+  EXPECT_NONFATAL_FAILURE((void)f.at("axial.kernel"), "axial.kernel is not a number");
   NoiseParams q = p;
   q.axial.c *= 1.02;
   EXPECT_NONFATAL_FAILURE(test::expect_fields_near(q, p, {"axial.c_per_m"}, 0.01),

@@ -38,11 +38,13 @@ struct ExtractParams {
   int max_planes = 2;             ///< depth: planes removed at most (table, wall)
   double plane_threshold = 0.01;  ///< depth: inlier distance [m]
   double min_plane_fraction = 0.1;  ///< depth: a plane must hold this fraction of the points
-  /// depth: and span this much across its narrower in-plane direction (the width of a
-  /// uniform strip with its inliers' spread there) [m]. A row of the link's balls seen
-  /// from the front lies within plane_threshold of a plane for much of its 30 mm width
-  /// and can hold min_plane_fraction once the table drops out of view; a table or a wall
-  /// is wider. 0: any width.
+  /// depth: and be wider than this both ways: its inliers must occupy 7 x 7 cells of a
+  /// fifth of it on a grid in the plane (which a plane 1.4 times as wide always does) [m].
+  /// A row of the link's balls seen from the front lies within plane_threshold of a plane
+  /// for much of its 30 mm width and can hold min_plane_fraction once the table drops out
+  /// of view; a table or a wall passes, the row (straight or bent, alone or with a small
+  /// object in the same plane) does not. A refused plane stays in the cloud and the search
+  /// goes on without it. 0: any plane.
   double min_plane_width = 0.1;
   int ransac_iterations = 200;      ///< depth: hypotheses per plane
 
@@ -72,7 +74,8 @@ struct ExtractParams {
 
 /// The planes step of the depth mode, usable on a real recording's cloud too: removes
 /// up to params.max_planes planes that each hold at least min_plane_fraction of the
-/// points and are at least min_plane_width wide. Deterministic for a given seed.
+/// points and are wider than min_plane_width (passing over narrower ones). Deterministic
+/// for a given seed.
 [[nodiscard]] Cloud remove_planes(const Cloud& cloud, const ExtractParams& params,
                                   std::uint64_t seed);
 
