@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <numbers>
@@ -502,6 +503,40 @@ TEST(HeldOutFidelity, TheSr300PresetIsTheTwoScaleFit) {
                            kPresetRelTol);
   test::expect_fields_near(fit, NoiseParams::sr300(),
                            {"axial.low_angle_term", "axial.low_stride_px", "edges.drop_steps"}, 0);
+}
+
+// Known red, so labelled with the held-out suite, outside CI: the shape correction's
+// render (rerender_surfaces with the noise off, so no lateral jitter) of a whole tilted
+// plane should be all surface, but it holds about 2100 one-pixel holes here (650 per frame
+// on the hand frames). depth_surface_mesh puts a vertex on every pixel's ray, and Embree's
+// robust triangle test can let a ray through exactly a vertex pass (RenderKit/embree#174,
+// #181). With the preset's 0.1 px jitter the rays miss the vertices (the first
+// expectation). Moving the vertices off the rays mends it and moves both fits
+// (docs/sensor.md, "The shape render's holes"), so it waits for the preset's next fit.
+TEST(HeldOutFidelity, TheShapeRenderOfAPlaneHasNoHoles) {
+  io::Intrinsics K;
+  K.fx = K.fy = 476.0;
+  io::DepthImage plane{K.width, K.height, {}};
+  for (int v = 0; v < K.height; ++v)
+    for (int u = 0; u < K.width; ++u) {
+      // z = 0.6 m + 0.3 x: tilted by 17 degrees about the vertical.
+      const double z = 0.6 / (1 - 0.3 * (u - K.cx) / K.fx);
+      plane.data.push_back(static_cast<std::uint16_t>(std::lround(z / K.depth_scale)));
+    }
+  NoiseParams quiet = NoiseParams::off();  // as calibrate-noise's shape correction
+  quiet.quantize = true;
+  const auto holes = [&](const NoiseParams& noise) {
+    const io::DepthImage out = rerender_surfaces({plane}, K, noise, 1).at(0);
+    long n = 0;  // away from the image border, where the surface's fill stops
+    for (int v = 2; v + 2 < out.height; ++v)
+      for (int u = 2; u + 2 < out.width; ++u)
+        n += out.data[static_cast<std::size_t>(v) * out.width + u] == 0;
+    return n;
+  };
+  NoiseParams jittered = quiet;
+  jittered.lateral.enabled = true;  // 0.1 px
+  EXPECT_EQ(holes(jittered), 0);
+  EXPECT_EQ(holes(quiet), 0) << "rays through the rebuilt mesh's vertices pass through it";
 }
 
 // The issue's held-out targets (issue 20), for the two-scale structure fitted by
