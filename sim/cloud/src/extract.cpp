@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <vector>
 
@@ -35,15 +36,13 @@ ExtractMode parse_extract_mode(std::string_view name) {
                               "' (expected truth or depth)");
 }
 
-// Whether the points `in` (within plane_threshold of the plane through `mean` with in-plane
-// axes e1, e2) are wider than `width` both ways: on a grid of cells of a fifth of it, they
-// must occupy a square of 7 x 7 cells (the usual dynamic programme over the cells). Points
-// in k cells in a row span more than k - 2 cells, so that takes more than `width` both ways;
-// a plane 7 cells (1.4 width) across always passes. A table or a wall does; a row of balls
-// (a strip a ball wide, bent or not), or such a row and a small object that happen to share
-// a plane, does not.
-bool covers_square(const std::vector<Eigen::Vector3d>& in, const Eigen::Vector3d& mean,
-                   const Eigen::Vector3d& e1, const Eigen::Vector3d& e2, double width) {
+namespace {
+
+// Whether the points `in` (within plane_threshold of the plane through `mean`, with
+// orthonormal in-plane axes e1, e2) span `width` along both and occupy a square of 7 x 7
+// cells of width / 5 on a grid along them (the usual dynamic programme over the cells).
+bool occupies_square(const std::vector<Eigen::Vector3d>& in, const Eigen::Vector3d& mean,
+                     const Eigen::Vector3d& e1, const Eigen::Vector3d& e2, double width) {
   double lo1 = 1e300, hi1 = -1e300, lo2 = 1e300, hi2 = -1e300;
   for (const Eigen::Vector3d& q : in) {
     const double a = e1.dot(q - mean), b = e2.dot(q - mean);
@@ -54,6 +53,7 @@ bool covers_square(const std::vector<Eigen::Vector3d>& in, const Eigen::Vector3d
   // At most about 4 million cells: coarser cells only for a plane tens of metres wide.
   constexpr double kMaxCells = 4e6;
   const double cell = std::max(width / 5, std::sqrt((hi1 - lo1) * (hi2 - lo2) / kMaxCells));
+  // Points in k cells in a row span more than k - 2 cells: k = 7 for cells of width / 5.
   const int side = static_cast<int>(std::ceil(width / cell - 1e-9)) + 2;
   const int n1 = static_cast<int>((hi1 - lo1) / cell) + 1;
   const int n2 = static_cast<int>((hi2 - lo2) / cell) + 1;
@@ -63,17 +63,37 @@ bool covers_square(const std::vector<Eigen::Vector3d>& in, const Eigen::Vector3d
     const int j = std::min(n2 - 1, static_cast<int>((e2.dot(q - mean) - lo2) / cell));
     run[static_cast<std::size_t>(j) * n1 + i] = 1;
   }
-  for (int j = 0; j < n2; ++j)
-    for (int i = 0; i < n1; ++i) {
+  for (int j = 1; j < n2; ++j)
+    for (int i = 1; i < n1; ++i) {
       int& r = run[static_cast<std::size_t>(j) * n1 + i];
-      if (r == 0 || i == 0 || j == 0) continue;
+      if (r == 0) continue;
       r = 1 + std::min({run[static_cast<std::size_t>(j - 1) * n1 + i],
                         run[static_cast<std::size_t>(j) * n1 + i - 1],
                         run[static_cast<std::size_t>(j - 1) * n1 + i - 1]});
       if (r >= side) return true;
     }
-  return side <= 1 && !in.empty();
+  return false;
 }
+
+// Whether the points `in` are wider than `width` both ways: they occupy 7 x 7 cells of a
+// fifth of it on a grid along e1, e2 (their principal axes) or turned by 30 or 60 degrees
+// in the plane. That takes more than `width` both ways. The principal axes of a square or
+// a disc fall anywhere, so one grid would refuse a square 1.7 widths wide at 45 degrees to
+// it; with three, any square over 1.5 widths and any disc over 1.7 widths across passes
+// (given a point every few millimetres). A table or a wall does; a row of balls (a strip a
+// ball wide, bent or not), or such a row and a small object in the same plane, does not.
+bool wide_both_ways(const std::vector<Eigen::Vector3d>& in, const Eigen::Vector3d& mean,
+                    const Eigen::Vector3d& e1, const Eigen::Vector3d& e2, double width) {
+  for (const double deg : {0.0, 30.0, 60.0}) {
+    const double t = deg * std::numbers::pi / 180;
+    const Eigen::Vector3d a = std::cos(t) * e1 + std::sin(t) * e2;
+    const Eigen::Vector3d b = -std::sin(t) * e1 + std::cos(t) * e2;
+    if (occupies_square(in, mean, a, b, width)) return true;
+  }
+  return false;
+}
+
+}  // namespace
 
 Cloud remove_planes(const Cloud& cloud, const ExtractParams& params, std::uint64_t seed) {
   params.validate();
@@ -138,7 +158,7 @@ Cloud remove_planes(const Cloud& cloud, const ExtractParams& params, std::uint64
     };
     std::vector<std::size_t> rest;
     if (params.min_plane_width > 0 &&
-        !covers_square(in, mean, eig.eigenvectors().col(1), eig.eigenvectors().col(2),
+        !wide_both_ways(in, mean, eig.eigenvectors().col(1), eig.eigenvectors().col(2),
                        params.min_plane_width)) {
       for (std::size_t i : candidates)
         if (!(std::abs(best_n.dot(point(i)) + best_d) < params.plane_threshold)) rest.push_back(i);

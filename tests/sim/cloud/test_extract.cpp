@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <tuple>
 #include <utility>
 
 #include "linksight/sim/extract.hpp"
@@ -188,18 +189,51 @@ TEST(Extract, DepthModeKeepsARowOfBallsThatLooksLikeAPlane) {
   EXPECT_EQ(left.size(), others - wall + balls) << "the box stays too; only the wall goes";
 }
 
-// What counts as a plane: a strip 0.15 m wide goes, one 0.09 m wide stays (the rule takes
-// more than 0.1 m and passes anything over 0.14 m), and a plane refused for its width does
-// not stop the search (the row of balls is the best plane here and the wall, 0.15 m square
-// with fewer points, is still found after it).
+// A square of side `side` turned by `angle` about the optical axis, or a disc of diameter
+// `side` (`disc`), centred on the axis at z = 0.7 m, sampled as a camera would: on a fixed
+// 2.5 mm grid, whatever the angle [m, rad].
+Cloud turned_shape(double side, double angle, bool disc) {
+  Cloud c;
+  const int n = static_cast<int>(side / 0.0025);
+  for (int i = -n; i <= n; ++i)
+    for (int j = -n; j <= n; ++j) {
+      const double x = 0.0025 * i, y = 0.0025 * j;
+      // In the shape's own frame.
+      const double xs = std::cos(angle) * x + std::sin(angle) * y;
+      const double ys = -std::sin(angle) * x + std::cos(angle) * y;
+      const bool inside = disc ? xs * xs + ys * ys <= side * side / 4
+                               : std::abs(xs) <= side / 2 && std::abs(ys) <= side / 2;
+      if (inside) c.push_back(static_cast<float>(x), static_cast<float>(y), 0.7F);
+    }
+  return c;
+}
+
+// What counts as a plane, for min_plane_width = 0.1 m (7 x 7 cells of 20 mm): a strip
+// 0.13 m wide (7 cells across) goes, strips 0.105 m (6 cells) and 0.09 m wide stay;
+// squares 0.15 m wide and discs 0.175 m across go at any angle, though their principal
+// axes fall anywhere (with one grid, along those axes, half the squares stay); narrower
+// ones stay. A plane refused for its width does not stop the
+// search (the row of balls is the best plane here and the wall, 0.15 m square with fewer
+// points, is still found after it).
 TEST(Extract, DepthModeRemovesPlanesThatCoverTheWidth) {
   ExtractParams p;
   p.mode = ExtractParams::Mode::depth;
   p.max_planes = 1;
-  for (const auto& [width, removed] : {std::pair{0.15, true}, std::pair{0.09, false}}) {
+  for (const auto& [width, removed] :
+       {std::pair{0.13, true}, std::pair{0.105, false}, std::pair{0.09, false}}) {
     Cloud strip;
     add_rect(strip, -0.3, 0.0, 0.6, width, 0.7);
     EXPECT_EQ(remove_planes(strip, p, 7).size(), removed ? 0u : strip.size()) << width << " m";
+  }
+  for (int deg = 0; deg < 90; deg += 5) {
+    const double a = deg * std::numbers::pi / 180;
+    for (const auto& [side, disc, removed] :
+         {std::tuple{0.15, false, true}, std::tuple{0.175, true, true},
+          std::tuple{0.095, false, false}, std::tuple{0.13, true, false}}) {
+      const Cloud shape = turned_shape(side, a, disc);
+      EXPECT_EQ(remove_planes(shape, p, 7).size(), removed ? 0u : shape.size())
+          << (disc ? "disc " : "square ") << side << " m at " << deg << " deg";
+    }
   }
   Cloud cloud;
   add_balls(cloud);

@@ -39,12 +39,13 @@ struct ExtractParams {
   double plane_threshold = 0.01;  ///< depth: inlier distance [m]
   double min_plane_fraction = 0.1;  ///< depth: a plane must hold this fraction of the points
   /// depth: and be wider than this both ways: its inliers must occupy 7 x 7 cells of a
-  /// fifth of it on a grid in the plane (which a plane 1.4 times as wide always does) [m].
+  /// fifth of it on a grid in the plane, along their principal axes or turned by 30 or 60
+  /// degrees (any square 1.5 times as wide and any disc 1.7 times as wide passes) [m].
   /// A row of the link's balls seen from the front lies within plane_threshold of a plane
   /// for much of its 30 mm width and can hold min_plane_fraction once the table drops out
   /// of view; a table or a wall passes, the row (straight or bent, alone or with a small
   /// object in the same plane) does not. A refused plane stays in the cloud and the search
-  /// goes on without it. 0: any plane.
+  /// goes on without it, so up to 1 / min_plane_fraction planes are tried. 0: any plane.
   double min_plane_width = 0.1;
   int ransac_iterations = 200;      ///< depth: hypotheses per plane
 
