@@ -507,15 +507,12 @@ TEST(HeldOutFidelity, TheSr300PresetIsTheTwoScaleFit) {
                            {"axial.low_angle_term", "axial.low_stride_px", "edges.drop_steps"}, 0);
 }
 
-// Known red, so labelled fidelity-full with the held-out suite, outside CI: the shape
-// correction's render (rerender_surfaces with the noise off, so no lateral jitter) of a
-// whole tilted plane should be all surface, but it holds about 2100 one-pixel holes here
-// (650 per frame on the hand frames). depth_surface_mesh puts a vertex on every pixel's
-// ray, and Embree's robust triangle test can let a ray through exactly a vertex pass
-// (RenderKit/embree#174, #181). With the preset's 0.1 px jitter the rays miss the
-// vertices (the first expectation). Moving the vertices off the rays mends it and moves
-// both fits (docs/sensor.md, "The shape render's holes"), so it waits for the presets'
-// next fit.
+// The shape correction's render (rerender_surfaces with the noise off, so no lateral
+// jitter) of a whole tilted plane is all surface. depth_surface_mesh puts each vertex
+// 0.01 px off its pixel's ray: on the ray, Embree's robust triangle test can let a ray
+// through exactly a vertex pass (RenderKit/embree#174, #181), and this plane came back
+// with about 2100 one-pixel holes (650 per frame on the hand frames). With the preset's
+// 0.1 px jitter the rays missed the vertices anyway (the first expectation).
 TEST(ShapeRender, APlaneComesBackWithoutHoles) {
   io::Intrinsics K;
   K.fx = K.fy = 476.0;

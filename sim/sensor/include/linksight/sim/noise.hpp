@@ -39,9 +39,9 @@ inline constexpr double kMinMaternRangePx = 3.0;
 /// replaced by a + c z^2. theta is the incidence angle at the camera.
 struct AxialNoise {
   bool enabled = true;
-  double a = 0.000054;   ///< [m] (fitted: 0.054 mm)
+  double a = 0.000048;   ///< [m] (fitted: 0.048 mm)
   double c = 0.0009;     ///< [1/m] (fitted: 0.9 mm/m^2)
-  double k_theta = 0.00031;  ///< [m^1.5] (fitted; Nguyen et al. have 0.0001 for the Kinect)
+  double k_theta = 0.00032;  ///< [m^1.5] (fitted; Nguyen et al. have 0.0001 for the Kinect)
   /// The angle term is evaluated at min(theta, theta_cap) so it stays finite [rad].
   double theta_cap = 80.0 * std::numbers::pi / 180.0;
   /// Spatial correlation: the unit normal field is a white field blurred by a Gaussian of
