@@ -207,7 +207,7 @@ TEST_F(Cli, RunPrintSceneWritesTheResolvedScene) {
                        "--print-scene --out " + out.string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_FALSE(fs::exists(out));
-  EXPECT_NE(r.out.find("\nnoise:\n  axial:\n    enabled: true\n    a_m: 0.000326\n"),
+  EXPECT_NE(r.out.find("\nnoise:\n  axial:\n    enabled: true\n    a_m: 0.000276\n"),
             std::string::npos)
       << r.out;  // the preset's 0.163 mm, scaled: every field in full
   EXPECT_NE(r.out.find("\n  mode: accelerated-som\n"), std::string::npos) << r.out;
