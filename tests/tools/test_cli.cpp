@@ -209,7 +209,7 @@ TEST_F(Cli, RunPrintSceneWritesTheResolvedScene) {
   EXPECT_FALSE(fs::exists(out));
   EXPECT_NE(r.out.find("\nnoise:\n  axial:\n    enabled: true\n    a_m: 0.000276\n"),
             std::string::npos)
-      << r.out;  // the preset's 0.163 mm, scaled: every field in full
+      << r.out;  // the preset's 0.138 mm, scaled: every field in full
   EXPECT_NE(r.out.find("\n  mode: accelerated-som\n"), std::string::npos) << r.out;
   fs::create_directories(dir / "elsewhere");
   std::ofstream(dir / "elsewhere" / "resolved.yaml") << r.out;

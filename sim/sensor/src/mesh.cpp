@@ -421,7 +421,7 @@ TriangleMesh depth_surface_mesh(const io::DepthImage& depth, const io::Intrinsic
   // the inside of a triangle: through exactly a shared vertex, Embree's robust triangle
   // test can let a ray pass every triangle (RenderKit/embree#174, #181), and an unjittered
   // re-render of this mesh came back with one-pixel holes (about 650 per hand frame).
-  // 0.01 px is 6 um at 0.6 m: far below what a window's fit reads.
+  // 0.01 px is about 13 um at 0.6 m: far below what a window's fit reads.
   constexpr double kVertexOffPx = 0.01;
   for (int v = 0; v < H; ++v)
     for (int u = 0; u < W; ++u) {

@@ -257,9 +257,10 @@ class UpdateChainFit final : public UpdatePolicy {
   // every node about one pitch off, in a minimum the slide (half a pitch either way) does
   // not leave: seen on self_occlusion and on a C-bent link at 0.7 m under the two-scale
   // sr300 camera (45 mm from the first frame). The fit moved by one component each way
-  // (the chain re-indexed, the end it leaves continued straight) and fitted again
-  // competes: whichever explains the points better (its total cost), the unmoved one on
-  // a tie. Two more fits, on a fresh start only.
+  // (the chain re-indexed: one end's node dropped, the other end continued straight) and
+  // fitted again competes: whichever explains the points better (its total cost), the
+  // unmoved one on a tie. Two more fits on a fresh start (the first frame, a restart, and
+  // each re-initialization the loss test tries).
   Fit best_of_shifts(const PointsView& points, Fit best, const Anchor& a) {
     const Nodes nodes = best.chain.nodes(geometry_.pitch);
     const std::size_t n = nodes.size();
