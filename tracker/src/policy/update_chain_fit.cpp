@@ -218,15 +218,9 @@ class UpdateChainFit final : public UpdatePolicy {
   // Clusters alone would not do: a link that hides part of itself falls apart into them.
   // With a base pose, a third start competes: the chain straight out of the base, which
   // holds where the points show only part of the link (the base end hidden).
-  // Then the best of those, and of it moved by one component either way (best_of_shifts).
-  Fit fresh_fit(const PointsView& points, const Nodes& start, const InitPolicy& init,
-                const Nodes* previous, const Eigen::Isometry3d* X_CB) {
-    return best_of_shifts(points, fresh_start(points, start, init, previous, X_CB),
-                          anchor(X_CB, false));
-  }
+  // All under the loose anchor `a` (anchor(X_CB, false)).
   Fit fresh_start(const PointsView& points, const Nodes& start, const InitPolicy& init,
-                  const Nodes* previous, const Eigen::Isometry3d* X_CB) {
-    const Anchor a = anchor(X_CB, false);
+                  const Nodes* previous, const Eigen::Isometry3d* X_CB, const Anchor& a) {
     Fit best = fit_from(points, base_first(start, X_CB), true, a);
     if (X_CB != nullptr) {
       Nodes out(start.size());
@@ -264,18 +258,24 @@ class UpdateChainFit final : public UpdatePolicy {
   Fit best_of_shifts(const PointsView& points, Fit best, const Anchor& a) {
     const Nodes nodes = best.chain.nodes(geometry_.pitch);
     const std::size_t n = nodes.size();
-    for (const int step : {-1, +1}) {
-      Nodes moved(n);
-      for (std::size_t j = 0; j < n; ++j) {
-        const std::ptrdiff_t from = static_cast<std::ptrdiff_t>(j) + step;
-        if (from < 0) moved[j] = 2 * nodes[0] - nodes[1];
-        else if (from >= static_cast<std::ptrdiff_t>(n)) moved[j] = 2 * nodes[n - 1] - nodes[n - 2];
-        else moved[j] = nodes[static_cast<std::size_t>(from)];
-      }
-      Fit other = fit_from(points, moved, true, a, false);
+    // Toward the base end: a node before ball 0, the tip's dropped.
+    Nodes back{Eigen::Vector3d(2 * nodes[0] - nodes[1])};
+    back.insert(back.end(), nodes.begin(), nodes.end() - 1);
+    // Toward the tip: ball 0's node dropped, one past the tip.
+    Nodes ahead(nodes.begin() + 1, nodes.end());
+    ahead.emplace_back(2 * nodes[n - 1] - nodes[n - 2]);
+    for (const Nodes* moved : {&back, &ahead}) {
+      Fit other = fit_from(points, *moved, true, a, false);
       if (total(other) < total(best)) best = std::move(other);
     }
     return best;
+  }
+
+  // The best fresh start (fresh_start), and of it moved by one component either way.
+  Fit fresh_fit(const PointsView& points, const Nodes& start, const InitPolicy& init,
+                const Nodes* previous, const Eigen::Isometry3d* X_CB) {
+    const Anchor a = anchor(X_CB, false);
+    return best_of_shifts(points, fresh_start(points, start, init, previous, X_CB, a), a);
   }
 
   // Constant velocity (issue 17, part 6): the previous frame's rigid move again (the best
