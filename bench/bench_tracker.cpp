@@ -1,7 +1,9 @@
 // Tracker throughput: paper mode, 12 nodes, 4 iterations, ms per frame over N points,
 // for every back end; chain-fit beside it on every back end (tracker_step_chain_fit/;
 // on OpenCL its passes run as kernels when the device has double precision),
-// for the ratio mode / paper mode measured in one run. `--smoke` registers one tiny size only (ctest runs it untimed).
+// for the ratio mode / paper mode measured in one run; chain-fit's first frame (its fresh
+// start) on the CPU back ends (tracker_first_frame_chain_fit/). `--smoke` registers one tiny
+// size only (ctest runs it untimed).
 //   linksight_bench --benchmark_filter=opencl     # one back end (the engine is in the name)
 #include <benchmark/benchmark.h>
 
@@ -45,6 +47,24 @@ void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(cloud.size()));
 }
 
+// chain-fit's fresh start, ms: a new tracker's first frame (initialization, the slide, the
+// fits from each start and of the best moved by one component either way). Paid on the
+// first frame, a restart and a re-initialization; the steady state above never pays it.
+void BM_TrackerFirstFrame(benchmark::State& state, BackendKind backend) {
+  const Cloud cloud = bench::make_cloud(static_cast<std::size_t>(state.range(0)));
+  TrackerParams p;
+  p.mode = parse_mode("chain-fit");
+  p.backend = backend;
+  p.nodes = 12;
+  p.compute_sdf = false;
+  for (auto _ : state) {
+    Tracker tracker(p);
+    FrameResult r = tracker.step(cloud);
+    benchmark::DoNotOptimize(r.nodes.data());
+  }
+  state.counters["points"] = static_cast<double>(cloud.size());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -81,6 +101,14 @@ int main(int argc, char** argv) {
     auto* bm = benchmark::RegisterBenchmark(
         (std::string("tracker_step_chain_fit/") + e.name).c_str(), BM_TrackerStep, e.kind,
         e.accumulation, "chain-fit");
+    for (auto n : sizes) bm->Arg(n);
+    bm->Unit(benchmark::kMillisecond)->UseRealTime();
+  }
+  for (const Engine& e : {Engine{"serial", BackendKind::serial, ClAccumulation::reduction},
+                          Engine{"openmp", BackendKind::openmp, ClAccumulation::reduction}}) {
+    auto* bm = benchmark::RegisterBenchmark(
+        (std::string("tracker_first_frame_chain_fit/") + e.name).c_str(), BM_TrackerFirstFrame,
+        e.kind);
     for (auto n : sizes) bm->Arg(n);
     bm->Unit(benchmark::kMillisecond)->UseRealTime();
   }
