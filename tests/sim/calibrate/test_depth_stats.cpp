@@ -539,6 +539,55 @@ TEST(ShapeRender, APlaneComesBackWithoutHoles) {
   EXPECT_EQ(holes(quiet), 0) << "rays through the rebuilt mesh's vertices pass through it";
 }
 
+// A surface's rim as the shape render returns it: a 100 x 100 px square of a plane at 0.6 m
+// on an empty background, the share of each side's 100 edge pixels that come back. The
+// camera saw every one of them. Red today, so outside CI (label fidelity-full): the rebuilt
+// mesh ends at the edge pixels' centres and its vertices sit 0.01 px down and right of their
+// rays, so without jitter the top and left sides miss the mesh (each ray meets the triangle
+// up and left of its vertex, which the background lacks) and with the preset's 0.1 px
+// jitter every side's rays fall off the rim about half the time. Measured 2026-11-29
+// (docs/sensor.md, "The shape render's rim"). The fix: a rim that reaches past the edge
+// pixels (half a pixel), or vertices moved toward the triangles they have.
+TEST(ShapeRenderRim, EveryEdgePixelOfASurfaceComesBack) {
+  io::Intrinsics K;
+  K.fx = K.fy = 476.0;
+  constexpr int kLo = 100, kHi = 200;  // the square: pixels [kLo, kHi) both ways
+  io::DepthImage square{K.width, K.height,
+                        std::vector<std::uint16_t>(static_cast<std::size_t>(K.width) * K.height, 0)};
+  for (int v = kLo; v < kHi; ++v)
+    for (int u = kLo; u < kHi; ++u)
+      square.data[static_cast<std::size_t>(v) * K.width + u] =
+          static_cast<std::uint16_t>(std::lround(0.6 / K.depth_scale));
+  NoiseParams quiet = NoiseParams::off();  // as calibrate-noise's shape correction
+  quiet.quantize = true;
+  NoiseParams jittered = quiet;
+  jittered.lateral = NoiseParams::sr300().lateral;
+  constexpr double kWholeRim = 0.99;     // without jitter: every edge pixel (one may round off)
+  constexpr double kJitteredRim = 0.9;   // with 0.1 px jitter: the rim must reach past 0.1 px
+  for (const auto& [noise, band, what] :
+       {std::tuple{quiet, kWholeRim, "no jitter"}, std::tuple{jittered, kJitteredRim, "jitter"}}) {
+    SCOPED_TRACE(what);
+    const io::DepthImage out = rerender_surfaces({square}, K, noise, 1).at(0);
+    const auto valid = [&](int u, int v) {
+      return out.data[static_cast<std::size_t>(v) * out.width + u] != 0;
+    };
+    double top = 0, bottom = 0, left = 0, right = 0;
+    for (int i = kLo; i < kHi; ++i) {
+      top += valid(i, kLo);
+      bottom += valid(i, kHi - 1);
+      left += valid(kLo, i);
+      right += valid(kHi - 1, i);
+    }
+    constexpr double kSide = kHi - kLo;
+    std::printf("%s: top %.2f bottom %.2f left %.2f right %.2f\n", what, top / kSide,
+                bottom / kSide, left / kSide, right / kSide);
+    EXPECT_GE(top / kSide, band);
+    EXPECT_GE(bottom / kSide, band);
+    EXPECT_GE(left / kSide, band);
+    EXPECT_GE(right / kSide, band);
+  }
+}
+
 // The issue's held-out targets (issue 20), for the two-scale structure fitted by
 // re-rendering (fit_noise_rerendered) on one half and compared on the other: plane-fit sigma
 // per depth and per angle bin and quadratic-fit sigma per angle bin (bins the fit half
