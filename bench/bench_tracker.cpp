@@ -17,11 +17,9 @@
 namespace {
 using namespace linksight;
 
-// End-to-end ms/frame (for OpenCL: upload + kernels + read-backs) and, for OpenCL, the
-// kernels' own device time per frame from profiling events ("kernel_ms").
-void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation accumulation,
-                    const char* mode) {
-  const Cloud cloud = bench::make_cloud(static_cast<std::size_t>(state.range(0)));
+// The tracker every bench here runs: 12 nodes, 4 iterations (paper mode's), no SDF.
+TrackerParams bench_params(const char* mode, BackendKind backend,
+                           ClAccumulation accumulation = ClAccumulation::reduction) {
   TrackerParams p;
   p.mode = parse_mode(mode);
   p.backend = backend;
@@ -29,7 +27,15 @@ void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation
   p.nodes = 12;
   p.iterations = 4;
   p.compute_sdf = false;  // the metric is evaluation, not tracking
-  Tracker tracker(p);
+  return p;
+}
+
+// End-to-end ms/frame (for OpenCL: upload + kernels + read-backs) and, for OpenCL, the
+// kernels' own device time per frame from profiling events ("kernel_ms").
+void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation accumulation,
+                    const char* mode) {
+  const Cloud cloud = bench::make_cloud(static_cast<std::size_t>(state.range(0)));
+  Tracker tracker(bench_params(mode, backend, accumulation));
   (void)tracker.step(cloud);  // initialization (and kernel build) is not the steady state
   std::int64_t reinits = 0;
   double device_s = 0.0;
@@ -52,11 +58,7 @@ void BM_TrackerStep(benchmark::State& state, BackendKind backend, ClAccumulation
 // first frame, a restart and a re-initialization; the steady state above never pays it.
 void BM_TrackerFirstFrame(benchmark::State& state, BackendKind backend) {
   const Cloud cloud = bench::make_cloud(static_cast<std::size_t>(state.range(0)));
-  TrackerParams p;
-  p.mode = parse_mode("chain-fit");
-  p.backend = backend;
-  p.nodes = 12;
-  p.compute_sdf = false;
+  const TrackerParams p = bench_params("chain-fit", backend);
   for (auto _ : state) {
     Tracker tracker(p);
     FrameResult r = tracker.step(cloud);
@@ -80,6 +82,10 @@ int main(int argc, char** argv) {
   const std::vector<std::int64_t> sizes =
       smoke ? std::vector<std::int64_t>{300}
             : std::vector<std::int64_t>{5000, 20000, 100000, 300000};
+  const auto at_sizes = [&sizes](benchmark::internal::Benchmark* bm) {
+    for (auto n : sizes) bm->Arg(n);
+    bm->Unit(benchmark::kMillisecond)->UseRealTime();
+  };
   struct Engine {
     const char* name;
     BackendKind kind;
@@ -92,8 +98,7 @@ int main(int argc, char** argv) {
         Engine{"opencl_atomic", BackendKind::opencl, ClAccumulation::atomic}}) {
     auto* bm = benchmark::RegisterBenchmark((std::string("tracker_step/") + e.name).c_str(),
                                             BM_TrackerStep, e.kind, e.accumulation, "paper");
-    for (auto n : sizes) bm->Arg(n);
-    bm->Unit(benchmark::kMillisecond)->UseRealTime();
+    at_sizes(bm);
   }
   for (const Engine& e : {Engine{"serial", BackendKind::serial, ClAccumulation::reduction},
                           Engine{"openmp", BackendKind::openmp, ClAccumulation::reduction},
@@ -101,16 +106,14 @@ int main(int argc, char** argv) {
     auto* bm = benchmark::RegisterBenchmark(
         (std::string("tracker_step_chain_fit/") + e.name).c_str(), BM_TrackerStep, e.kind,
         e.accumulation, "chain-fit");
-    for (auto n : sizes) bm->Arg(n);
-    bm->Unit(benchmark::kMillisecond)->UseRealTime();
+    at_sizes(bm);
   }
   for (const Engine& e : {Engine{"serial", BackendKind::serial, ClAccumulation::reduction},
                           Engine{"openmp", BackendKind::openmp, ClAccumulation::reduction}}) {
     auto* bm = benchmark::RegisterBenchmark(
         (std::string("tracker_first_frame_chain_fit/") + e.name).c_str(), BM_TrackerFirstFrame,
         e.kind);
-    for (auto n : sizes) bm->Arg(n);
-    bm->Unit(benchmark::kMillisecond)->UseRealTime();
+    at_sizes(bm);
   }
   int n = static_cast<int>(args.size());
   benchmark::Initialize(&n, args.data());
