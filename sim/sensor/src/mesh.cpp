@@ -442,6 +442,48 @@ TriangleMesh depth_surface_mesh(const io::DepthImage& depth, const io::Intrinsic
       if (close(a, c, b)) mesh.triangles.emplace_back(vertex[a], vertex[c], vertex[b]);
       if (close(b, c, d)) mesh.triangles.emplace_back(vertex[b], vertex[c], vertex[d]);
     }
+  // The rim. The triangles end at the edge pixels' centres, and with kVertexOffPx a top or
+  // left edge pixel's own ray meets no triangle at all, so a re-render lost about 16% of
+  // the rim pixels the camera saw (ShapeRenderRim). Each pixel with a neighbour off its
+  // surface also gets a splat: its tangent plane over its own footprint, half a pixel each
+  // way, kRimSplatBehind_m behind the mesh so that a ray that meets the mesh keeps the
+  // mesh's depth (the nearest hit wins).
+  constexpr double kRimSplatBehind_m = 0.0002;
+  const auto same = [&](std::size_t a, std::size_t b) {
+    return smooth[b] > 0 && std::abs(smooth[b] - smooth[a]) <= p.jump;
+  };
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      const std::size_t i = idx(u, v);
+      if (smooth[i] <= 0) continue;
+      bool rim = false;
+      for (int dv = -1; dv <= 1 && !rim; ++dv)
+        for (int du = -1; du <= 1 && !rim; ++du) {
+          const int uu = u + du, vv = v + dv;
+          rim = uu < 0 || vv < 0 || uu >= W || vv >= H || !same(i, idx(uu, vv));
+        }
+      if (!rim) continue;
+      // Depth change per pixel along u or v, from the neighbours on the same surface.
+      const auto slope = [&](int du, int dv) {
+        const int u0 = u - du, v0 = v - dv, u1 = u + du, v1 = v + dv;
+        const bool lo = u0 >= 0 && v0 >= 0 && same(i, idx(u0, v0));
+        const bool hi = u1 < W && v1 < H && same(i, idx(u1, v1));
+        if (lo && hi) return 0.5 * (smooth[idx(u1, v1)] - smooth[idx(u0, v0)]);
+        if (hi) return smooth[idx(u1, v1)] - smooth[i];
+        if (lo) return smooth[i] - smooth[idx(u0, v0)];
+        return 0.0;
+      };
+      const double gu = slope(1, 0), gv = slope(0, 1);
+      const int first = static_cast<int>(mesh.vertices.size());
+      for (const auto& [cu, cv] : {std::pair{-0.5, -0.5}, std::pair{0.5, -0.5},
+                                   std::pair{-0.5, 0.5}, std::pair{0.5, 0.5}}) {
+        // Off by kVertexOffPx along u only: the splat's diagonal must miss the pixel's ray.
+        const double z_m = smooth[i] + gu * cu + gv * cv + kRimSplatBehind_m;
+        mesh.vertices.push_back(K.deproject(u + cu + kVertexOffPx, v + cv, z_m).cast<float>());
+      }
+      mesh.triangles.emplace_back(first, first + 2, first + 1);
+      mesh.triangles.emplace_back(first + 1, first + 2, first + 3);
+    }
   return mesh;
 }
 
