@@ -41,18 +41,18 @@ NoiseParams NoiseParams::sr300() {
   // sr300 preset"), rounded to the digits the fit resolves; the terms it leaves out
   // (lateral jitter, min_signal, theta_cap, hole sizes) as in the one-field preset.
   NoiseParams p;
-  p.axial.a = 0.000138;        // 0.138 mm
-  p.axial.c = 0.00259;         // 2.59 mm/m^2
-  p.axial.k_theta = 0.000638;  // m^1.5
-  p.axial.correlation_px = 1.95;
-  p.axial.correlation_cols_px = 2.8;
-  p.axial.low_share = 0.9775;
+  p.axial.a = 0.000128;        // 0.128 mm
+  p.axial.c = 0.00248;         // 2.48 mm/m^2
+  p.axial.k_theta = 0.000526;  // m^1.5
+  p.axial.correlation_px = 2.02;
+  p.axial.correlation_cols_px = 2.65;
+  p.axial.low_share = 0.961;
   p.axial.low_rows_px = 6;
-  p.axial.low_cols_px = 6;
+  p.axial.low_cols_px = 6.12;
   p.axial.low_angle_term = false;
   p.axial.low_stride_px = 2;
-  p.dropouts.max_incidence = 70.5 * (std::numbers::pi / 180.0);  // as a scene reads 70.5
-  p.dropouts.hole_rate = 57.2;
+  p.dropouts.max_incidence = 71.0 * (std::numbers::pi / 180.0);  // as a scene reads 71
+  p.dropouts.hole_rate = 51.5;
   p.edges.drop_steps = true;
   return p;
 }
