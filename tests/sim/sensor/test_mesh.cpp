@@ -259,7 +259,10 @@ namespace {
 // depth_surface_mesh: a plane at 0.6 m with a near block at 0.5 m in front of it, the
 // block's right edge followed by a 6-px invalid band and a 2-px hole in the plane. The
 // band is filled with the far (plane) depth; no triangle spans the discontinuity; every
-// vertex lies on its surface (smoothing keeps planes). Then a hole on a ramp: linear.
+// vertex lies on its surface (smoothing keeps planes). The rim pixels (an 8-neighbour on
+// the other surface or off the image) each add a splat of 4 vertices and 2 triangles,
+// kRimSplatBehind_m behind their surface. Then a hole on a ramp: linear, and the ramp's
+// splats follow its slope.
 TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
   io::Intrinsics K;
   K.width = 64;
@@ -281,10 +284,18 @@ TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
   d.data[static_cast<std::size_t>(40) * K.width + 50] = 0;  // a hole
   d.data[static_cast<std::size_t>(40) * K.width + 51] = 0;
   const TriangleMesh m = depth_surface_mesh(d, K);
-  EXPECT_EQ(m.vertices.size(), d.data.size()) << "every pixel present after filling";
-  for (const Eigen::Vector3f& p : m.vertices) {
-    const bool near = std::abs(p.z() - 0.5F) < 1e-4F, far = std::abs(p.z() - 0.6F) < 1e-4F;
-    EXPECT_TRUE(near || far) << p.transpose();
+  constexpr float kRimSplatBehind_m = 0.0002F;
+  // The rim: the image's border ring (2 x (64 + 48) - 4), the block's outermost ring of
+  // 20 x 20 pixels (76) and the plane's ring around it (22 x 22 - 20 x 20: the band is
+  // filled with the plane's depth, the hole with the plane's own).
+  constexpr std::size_t kRim = 220 + 76 + 84;
+  ASSERT_EQ(m.vertices.size(), d.data.size() + 4 * kRim) << "every pixel present after filling";
+  for (std::size_t k = 0; k < m.vertices.size(); ++k) {
+    const Eigen::Vector3f& p = m.vertices[k];
+    const float behind = k < d.data.size() ? 0.0F : kRimSplatBehind_m;
+    const bool near = std::abs(p.z() - 0.5F - behind) < 1e-4F;
+    const bool far = std::abs(p.z() - 0.6F - behind) < 1e-4F;
+    EXPECT_TRUE(near || far) << k << ": " << p.transpose();
   }
   int near = 0;
   for (const Eigen::Vector3i& t : m.triangles) {
@@ -296,7 +307,7 @@ TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
     EXPECT_LT(hi - lo, 0.02F) << "a triangle across the discontinuity";
     near += hi < 0.55F;
   }
-  EXPECT_EQ(near, 2 * 19 * 19) << "the block's 20 x 20 pixels make 19 x 19 quads";
+  EXPECT_EQ(near, 2 * 19 * 19 + 2 * 76) << "the block's 20 x 20 pixels make 19 x 19 quads";
   // Every triangle of the 2x2 blocks (split a-c-b, b-c-d) with its corners on one side of
   // the block's outline, the band and the hole included.
   auto in_block = [](int u, int v) { return u >= 10 && u < 30 && v >= 10 && v < 30; };
@@ -307,7 +318,7 @@ TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
                  dd = in_block(u + 1, v + 1);
       expected += (a == c && c == b) + (b == c && c == dd);
     }
-  EXPECT_EQ(m.triangles.size(), expected);
+  EXPECT_EQ(m.triangles.size(), expected + 2 * kRim);
   // A hole on a slope is filled linearly, not with either side: a ramp along rows, 1 mm
   // deeper per pixel (within `jump` across the gap), with a 3-px hole mid-row.
   io::DepthImage ramp = d;
@@ -318,10 +329,17 @@ TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
   DepthSurfaceParams no_smoothing;  // so that the filled depths are the fill's
   no_smoothing.smoothing_px = 0;
   const TriangleMesh r = depth_surface_mesh(ramp, K, no_smoothing);
-  ASSERT_EQ(r.vertices.size(), ramp.data.size());
+  ASSERT_EQ(r.vertices.size(), ramp.data.size() + 4 * 220) << "the border ring's splats only";
   for (int u = 30; u < 33; ++u)
     EXPECT_NEAR(r.vertices[static_cast<std::size_t>(24) * K.width + u].z(), 0.6 + 0.001 * u, 1e-6)
         << u;
+  // A splat's corners lie on the ramp's plane (at their own column, 0.01 px left of where
+  // they are deprojected: off the pixel's ray), behind it.
+  for (std::size_t k = ramp.data.size(); k < r.vertices.size(); ++k) {
+    const Eigen::Vector3f& p = r.vertices[k];
+    const double u = K.fx * p.x() / p.z() + K.cx - 0.01;
+    EXPECT_NEAR(p.z(), 0.6 + 0.001 * u + kRimSplatBehind_m, 2e-6) << k << ": " << p.transpose();
+  }
   d.data.assign(d.data.size(), 0);
   EXPECT_THROW((void)depth_surface_mesh(d, K), std::invalid_argument);
   DepthSurfaceParams bad;
