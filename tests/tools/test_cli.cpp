@@ -1648,7 +1648,7 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   EXPECT_GE(matern.correlation_px, sim::kMinMaternRangePx);
   EXPECT_GT(matern.correlation_cols_px, matern.correlation_px);
   // The two-scale structure, fitted by re-rendering the frames (one sweep of 2 draws here;
-  // the default 12 sweeps of 4 draws take about 2 min on these 11 frames): a block a scene
+  // the default 12 sweeps of 4 draws take about 4 min on these 11 frames): a block a scene
   // accepts, the low field without the angle term, max_incidence fitted, the draws noted.
   const fs::path scaled = dir / "two-scale.yaml";
   const CliRun r3 = run("calibrate-noise --structure two-scale --sweeps 1 --draws 2 --quiet --input " +

@@ -444,10 +444,14 @@ TriangleMesh depth_surface_mesh(const io::DepthImage& depth, const io::Intrinsic
     }
   // The rim. The triangles end at the edge pixels' centres, and with kVertexOffPx a top or
   // left edge pixel's own ray meets no triangle at all, so a re-render lost about 16% of
-  // the rim pixels the camera saw (ShapeRenderRim). Each pixel with a neighbour off its
-  // surface also gets a splat: its tangent plane over its own footprint, half a pixel each
-  // way, kRimSplatBehind_m behind the mesh so that a ray that meets the mesh keeps the
-  // mesh's depth (the nearest hit wins).
+  // the rim pixels the camera saw (ShapeRenderRim). Each pixel with an 8-neighbour off its
+  // surface or off the image also gets a splat: its tangent plane over its own footprint,
+  // half a pixel each way, kRimSplatBehind_m behind the pixel's depth, so that a ray that
+  // meets the mesh keeps the mesh's depth (the nearest hit wins). "Behind" holds at the
+  // centre: where the surface bulges towards the camera by more than that over half a pixel
+  // the plane comes in front of the mesh's chords (132 pixels of the 11 hand frames'
+  // jittered renders, at most 1.5 mm; docs/sensor.md). A pixel with no neighbour on its
+  // surface (a stray the camera reported, about 3 a hand frame) gets a flat splat too.
   constexpr double kRimSplatBehind_m = 0.0002;
   const auto same = [&](std::size_t a, std::size_t b) {
     return smooth[b] > 0 && std::abs(smooth[b] - smooth[a]) <= p.jump;
@@ -477,7 +481,12 @@ TriangleMesh depth_surface_mesh(const io::DepthImage& depth, const io::Intrinsic
       const int first = static_cast<int>(mesh.vertices.size());
       for (const auto& [cu, cv] : {std::pair{-0.5, -0.5}, std::pair{0.5, -0.5},
                                    std::pair{-0.5, 0.5}, std::pair{0.5, 0.5}}) {
-        // Off by kVertexOffPx along u only: the splat's diagonal must miss the pixel's ray.
+        // Off by kVertexOffPx along u, so that the splat's diagonal, which runs through the
+        // pixel's centre, misses its ray (Embree's robust test, above). The mesh's vertices
+        // are off along v too, so at the ray the two differ by 0.01 px of the v slope as
+        // well: on a surface that changes by `jump` (20 mm) a pixel along v that takes up the
+        // whole kRimSplatBehind_m. The mesh's diagonal offset would not; kept as it is,
+        // since the sr300 preset was fitted through this render.
         const double z_m = smooth[i] + gu * cu + gv * cv + kRimSplatBehind_m;
         mesh.vertices.push_back(K.deproject(u + cu + kVertexOffPx, v + cv, z_m).cast<float>());
       }

@@ -65,9 +65,9 @@ struct DepthSurfaceParams {
 /// vertex per valid or filled pixel, deprojected with `intrinsics` 0.01 px off the pixel's
 /// ray (so that a ray through the pixel meets a triangle's inside, not a vertex), and two
 /// triangles per 2x2 block whose corners are all present and within `jump` of each other
-/// (none across a discontinuity); and at every pixel with an 8-neighbour off its surface, a
-/// square of its tangent plane over its own footprint, 0.2 mm behind, so that the rim's
-/// rays meet the surface as the camera's did. For re-rendering a real recording's geometry
+/// (none across a discontinuity); and at every pixel with an 8-neighbour off its surface or
+/// off the image, a square of its tangent plane over its own footprint, 0.2 mm behind at its
+/// centre, so that the rim's rays meet the surface as the camera's did. For re-rendering a real recording's geometry
 /// through the simulated camera (`linksight fidelity`): same scene, so what differs is the
 /// sensor model. Throws std::invalid_argument for a size that differs from the
 /// intrinsics, or no valid pixel.
