@@ -564,7 +564,7 @@ TEST(ShapeRenderRim, EveryEdgePixelOfASurfaceComesBack) {
   jittered.lateral = NoiseParams::sr300().lateral;
   constexpr double kWholeRim = 0.99;     // without jitter: every edge pixel (one may round off)
   constexpr double kJitteredRim = 0.9;   // with 0.1 px jitter: the rim must reach past 0.1 px
-  constexpr double kRimDepthTol_m = 0.0002 + 0.000125;  // the splat's offset and a depth unit
+  const double kRimDepthTol_m = kRimSplatBehind_m + K.depth_scale;  // the splat's offset, a unit
   for (const auto& [noise, band, what] :
        {std::tuple{quiet, kWholeRim, "no jitter"}, std::tuple{jittered, kJitteredRim, "jitter"}}) {
     SCOPED_TRACE(what);

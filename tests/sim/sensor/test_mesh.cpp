@@ -284,7 +284,6 @@ TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
   d.data[static_cast<std::size_t>(40) * K.width + 50] = 0;  // a hole
   d.data[static_cast<std::size_t>(40) * K.width + 51] = 0;
   const TriangleMesh m = depth_surface_mesh(d, K);
-  constexpr float kRimSplatBehind_m = 0.0002F;
   // The rim: the image's border ring (2 x (64 + 48) - 4), the block's outermost ring of
   // 20 x 20 pixels (76) and the plane's ring around it (22 x 22 - 20 x 20: the band is
   // filled with the plane's depth, the hole with the plane's own).
@@ -292,7 +291,7 @@ TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
   ASSERT_EQ(m.vertices.size(), d.data.size() + 4 * kRim) << "every pixel present after filling";
   for (std::size_t k = 0; k < m.vertices.size(); ++k) {
     const Eigen::Vector3f& p = m.vertices[k];
-    const float behind = k < d.data.size() ? 0.0F : kRimSplatBehind_m;
+    const float behind = k < d.data.size() ? 0.0F : static_cast<float>(kRimSplatBehind_m);
     const bool near = std::abs(p.z() - 0.5F - behind) < 1e-4F;
     const bool far = std::abs(p.z() - 0.6F - behind) < 1e-4F;
     EXPECT_TRUE(near || far) << k << ": " << p.transpose();

@@ -61,6 +61,10 @@ struct DepthSurfaceParams {
   void validate() const;  ///< throws std::invalid_argument naming the field
 };
 
+/// How far behind its pixel's depth a rim pixel's splat in depth_surface_mesh sits, at the
+/// pixel's centre [m]: enough that a ray meeting the mesh keeps the mesh's depth.
+inline constexpr double kRimSplatBehind_m = 0.0002;
+
 /// The surface a depth image (raw units, 0 = invalid) saw, in the camera frame C [m]: one
 /// vertex per valid or filled pixel, deprojected with `intrinsics` 0.01 px off the pixel's
 /// ray (so that a ray through the pixel meets a triangle's inside, not a vertex), and two
