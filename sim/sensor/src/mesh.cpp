@@ -452,9 +452,8 @@ TriangleMesh depth_surface_mesh(const io::DepthImage& depth, const io::Intrinsic
   // the plane comes in front of the mesh's chords (132 pixels of the 11 hand frames'
   // jittered renders, at most 1.5 mm; docs/sensor.md). A pixel with no neighbour on its
   // surface (a stray the camera reported, about 3 a hand frame) gets a flat splat too.
-  const auto same = [&](std::size_t a, std::size_t b) {
-    return smooth[b] > 0 && std::abs(smooth[b] - smooth[a]) <= p.jump;
-  };
+  // Pixel b on pixel a's surface (a has a depth): the triangles' own rule.
+  const auto same = [&](std::size_t a, std::size_t b) { return close(a, b, b); };
   for (int v = 0; v < H; ++v)
     for (int u = 0; u < W; ++u) {
       const std::size_t i = idx(u, v);

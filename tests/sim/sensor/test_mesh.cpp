@@ -262,7 +262,7 @@ namespace {
 // vertex lies on its surface (smoothing keeps planes). The rim pixels (an 8-neighbour on
 // the other surface or off the image) each add a splat of 4 vertices and 2 triangles,
 // kRimSplatBehind_m behind their surface. Then a hole on a ramp: linear, and the ramp's
-// splats follow its slope.
+// splats follow its slope, along rows and along columns; and every triangle faces the camera.
 TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
   io::Intrinsics K;
   K.width = 64;
@@ -339,6 +339,30 @@ TEST(DepthSurfaceMesh, FillsBandsAndHolesAndKeepsEdges) {
     const double u = K.fx * p.x() / p.z() + K.cx - 0.01;
     EXPECT_NEAR(p.z(), 0.6 + 0.001 * u + kRimSplatBehind_m, 2e-6) << k << ": " << p.transpose();
   }
+  // The same along columns: a ramp down the image, 1 mm deeper per row. The splats take the
+  // slope along v from their neighbours as they take it along u (they are not offset along
+  // v, so each corner lies on the plane at its own row).
+  io::DepthImage down = ramp;
+  for (int v = 0; v < K.height; ++v)
+    for (int u = 0; u < K.width; ++u)
+      down.data[static_cast<std::size_t>(v) * K.width + u] = static_cast<std::uint16_t>(4800 + 8 * v);
+  const TriangleMesh c = depth_surface_mesh(down, K, no_smoothing);
+  ASSERT_EQ(c.vertices.size(), down.data.size() + 4 * 220) << "the border ring's splats only";
+  for (std::size_t k = down.data.size(); k < c.vertices.size(); ++k) {
+    const Eigen::Vector3f& p = c.vertices[k];
+    const double v = K.fy * p.y() / p.z() + K.cy;
+    EXPECT_NEAR(p.z(), 0.6 + 0.001 * v + kRimSplatBehind_m, 2e-6) << k << ": " << p.transpose();
+  }
+  // Every triangle, the splats' included, faces the camera (counter-clockwise seen from it,
+  // x right, y down): its normal points back along the ray to its centroid, so a back-face
+  // test or a normal read off the mesh sees the surface as the camera does.
+  for (const TriangleMesh* mesh : {&m, &r, &c})
+    for (const Eigen::Vector3i& t : mesh->triangles) {
+      const Eigen::Vector3f& p0 = mesh->vertices[static_cast<std::size_t>(t[0])];
+      const Eigen::Vector3f& p1 = mesh->vertices[static_cast<std::size_t>(t[1])];
+      const Eigen::Vector3f& p2 = mesh->vertices[static_cast<std::size_t>(t[2])];
+      EXPECT_LT((p1 - p0).cross(p2 - p0).dot(p0 + p1 + p2), 0.0F) << t.transpose();
+    }
   d.data.assign(d.data.size(), 0);
   EXPECT_THROW((void)depth_surface_mesh(d, K), std::invalid_argument);
   DepthSurfaceParams bad;
