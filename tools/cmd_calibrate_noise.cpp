@@ -36,6 +36,8 @@ struct CalibrateOptions {
   bool sweeps_given = false;
   int draws = sim::RerenderFitParams{}.draws;  // two-scale: noise draws per frame, pooled
   bool draws_given = false;
+  double lateral_sigma_px = 0;  // two-scale: the casts' jitter, when given
+  bool lateral_given = false;
 };
 
 // The --structure values, from the structures' one list.
@@ -234,6 +236,18 @@ int run_calibrate(const CalibrateOptions& o) {
   if (o.draws_given && structure != sim::NoiseStructure::two_scale)
     throw io::InputError("--draws: only the two-scale structure re-renders (--structure " +
                          o.structure + ")");
+  if (o.lateral_given && structure != sim::NoiseStructure::two_scale)
+    throw io::InputError("--lateral-sigma-px: only the two-scale structure casts the frames "
+                         "(--structure " + o.structure + ")");
+  if (o.lateral_given) {  // the model's own range (LateralNoise), before any frame is read
+    sim::NoiseParams jitter = sim::NoiseParams::sr300_one_field();
+    jitter.lateral.sigma_px = o.lateral_sigma_px;
+    try {
+      jitter.validate();
+    } catch (const std::invalid_argument& e) {
+      throw io::InputError(std::string("--lateral-sigma-px: ") + e.what());
+    }
+  }
   const io::Intrinsics K = io::read_intrinsics(o.intrinsics);
   const std::vector<io::DepthImage> frames =
       take_half(read_depth_frames(o.input, K, o.intrinsics, "calibrate-noise"), K, o.half,
@@ -262,6 +276,7 @@ int run_calibrate(const CalibrateOptions& o) {
     sim::RerenderFitParams p;
     p.sweeps = o.sweeps;
     p.draws = o.draws;
+    if (o.lateral_given) p.lateral_sigma_px = o.lateral_sigma_px;
     try {
       fit = sim::fit_noise_rerendered(frames, K, stats, shape_p,
                                       sim::NoiseParams::sr300_one_field(), p);
@@ -329,12 +344,18 @@ Runner add_calibrate_noise(CLI::App& app) {
           ->check(CLI::Range(0, 1000))
           ->capture_default_str();
   CLI::Option* draws = add_draws_option(app, o->draws, "two-scale: every candidate of the search");
+  CLI::Option* lateral =
+      app.add_option("--lateral-sigma-px", o->lateral_sigma_px,
+                     "two-scale: the lateral jitter [px] the frames are cast with and the block "
+                     "keeps (default: sr300-one-field's 0.1 px estimate; not searched)")
+;
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
-  return [o, sweeps, draws] {
+  return [o, sweeps, draws, lateral] {
     o->sweeps_given = sweeps->count() > 0;
     o->draws_given = draws->count() > 0;
+    o->lateral_given = lateral->count() > 0;
     return run_calibrate(*o);
   };
 }

@@ -1692,6 +1692,13 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
   expect_refused("calibrate-noise --structure two-scale --draws 0 --input " +
                      (real / "frames").string() + k,
                  "--draws");
+  expect_refused("calibrate-noise --lateral-sigma-px 0 --input " + (real / "frames").string() + k,
+                 "--lateral-sigma-px: only the two-scale structure casts the frames (--structure "
+                 "one-field)");
+  // The jitter's range is the model's own (LateralNoise), named by its key.
+  expect_refused("calibrate-noise --structure two-scale --lateral-sigma-px 11 --input " +
+                     (real / "frames").string() + k,
+                 "--lateral-sigma-px: noise.lateral.sigma_px = 11: must be in [0, 10]");
   // Intrinsics that do not match the frames.
   io::Intrinsics small;
   small.width = 32;

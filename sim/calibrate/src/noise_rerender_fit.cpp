@@ -151,12 +151,27 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
   if (params.draws < 1)
     throw std::invalid_argument("fit_noise_rerendered: draws = " + std::to_string(params.draws) +
                                 ": must be >= 1");
+  if (params.lateral_sigma_px) {
+    // The model's own range check (LateralNoise's fields), before any work.
+    NoiseParams jitter = start;
+    jitter.lateral.sigma_px = *params.lateral_sigma_px;
+    try {
+      jitter.validate();
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("fit_noise_rerendered: lateral_sigma_px: ") + e.what());
+    }
+  }
   NoiseFit fit = fit_noise(stats, start, shape, NoiseStructure::one_field);
+  if (params.lateral_sigma_px) fit.params.lateral.sigma_px = *params.lateral_sigma_px;
   const NoiseParams base = fit.params;
   // The search fits max_incidence, which the one-field fit keeps.
+  char given[96];
+  std::snprintf(given, sizeof given, "lateral.sigma_px %g px as given, dropouts.min_signal kept",
+                base.lateral.sigma_px);
   for (std::string& note : fit.notes)
     if (note.rfind("lateral.sigma_px and dropouts.max_incidence", 0) == 0)
-      note = "lateral.sigma_px and dropouts.min_signal kept: not measured";
+      note = params.lateral_sigma_px ? std::string(given) + ": not measured"
+                                     : "lateral.sigma_px and dropouts.min_signal kept: not measured";
   // The casts depend on the lateral jitter and the projector only, which the search keeps.
   std::vector<Cast> casts;
   for (std::size_t f = 0; f < frames.size(); ++f) {

@@ -828,6 +828,39 @@ TEST(DepthStats, RerenderedFitReadsWhatRerenderSurfacesReturns) {
   EXPECT_NE(other, read);  // 157 against 117 on these t.frames
 }
 
+// RerenderFitParams::lateral_sigma_px: the frames are cast with the jitter given, the block
+// keeps it and its note says so, the cost noted is what that block's draws read, and the
+// start's jitter (0.1 px) casts other images; a value the model refuses is named.
+TEST(DepthStats, RerenderedFitCastsWithTheLateralJitterGiven) {
+  const TwoFrames t = two_frames();
+  RerenderFitParams p;
+  p.sweeps = 0;
+  p.draws = 1;
+  p.lateral_sigma_px = 0;
+  const NoiseFit fit =
+      fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
+  EXPECT_EQ(fit.params.lateral.sigma_px, 0.0);
+  EXPECT_TRUE(std::any_of(fit.notes.begin(), fit.notes.end(), [](const std::string& n) {
+    return n.rfind("lateral.sigma_px 0 px as given, dropouts.min_signal kept", 0) == 0;
+  })) << ::testing::PrintToString(fit.notes);
+  const double cost = noted_mismatch(fit).first;
+  ASSERT_GT(cost, 0);
+  const double read =
+      target_mismatch(t.stats, depth_stats(rerender_surfaces(t.frames, t.K, fit.params, p.seed, 1), t.K)).cost;
+  EXPECT_NEAR(read, cost, 0.005 * cost);  // the note gives 3 digits
+  p.lateral_sigma_px.reset();
+  const NoiseFit start =
+      fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
+  EXPECT_EQ(start.params.lateral.sigma_px, NoiseParams::sr300_one_field().lateral.sigma_px);
+  EXPECT_NE(noted_mismatch(start).first, cost);
+  p.lateral_sigma_px = -0.5;
+  EXPECT_NE(test::error_of<std::invalid_argument>([&] {
+              (void)fit_noise_rerendered(t.frames, t.K, t.stats, nullptr,
+                                         NoiseParams::sr300_one_field(), p);
+            }).find("lateral.sigma_px"),
+            std::string::npos);
+}
+
 // The estimator's reading of correlated noise: white reads white with the plane fit's own
 // 3 dof taken into account; a wider kernel reads a higher lag-1 correlation (rising to
 // about 3 px, then flat near 0.9: the quadratic fit removes what is smoother) and a lower

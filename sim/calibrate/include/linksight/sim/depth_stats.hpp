@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -323,17 +324,25 @@ struct RerenderFitParams {
   /// draws): the search then follows the model's expected statistics, not one draw's.
   int draws = 4;
   int threads = 0;         ///< OpenMP threads of each render (0: the default); any gives the same fit
+  /// The lateral jitter the frames are cast with and the fit keeps [px]
+  /// (LateralNoise::sigma_px; 0: none); unset, the start's (sr300-one-field's
+  /// 0.1 px estimate). Not searched: each value needs its own casts. On the shared frames
+  /// the noise-free re-render reads a quadratic-fit sigma at 0-15 deg of 0.080 mm with
+  /// 0.1 px and 0.045 mm with none, the camera 0.161 mm (docs/sensor.md, "The lateral
+  /// jitter in the re-render").
+  std::optional<double> lateral_sigma_px;
 };
 /// The `two_scale` structure fitted to a recording by simulation: `frames` (with their
 /// statistics `stats`, and `shape`, as for fit_noise) are first fitted with the one-field
 /// model (fit_noise), then each frame's surface is cast once (depth_surface_mesh, that
-/// fit's lateral jitter and projector) and a pattern search over the axial a and c (one
+/// fit's projector and lateral jitter, or params.lateral_sigma_px) and a pattern search over the axial a and c (one
 /// scale), k_theta, the pixel-scale field's widths along rows and columns,
 /// the low field's widths and share (on a 2 px grid), dropouts.max_incidence and the hole
 /// rate (a scale) re-applies the noise model to the casts and minimizes
 /// target_mismatch(stats, their statistics). Everything else is the one-field fit's. Deterministic: the same frames and params give the same fit for any thread
 /// count. The notes add the start, the final cost and what stays outside the band. Throws
-/// as fit_noise and depth_surface_mesh do, and std::invalid_argument for sweeps < 0.
+/// as fit_noise and depth_surface_mesh do, and std::invalid_argument for sweeps < 0,
+/// draws < 1 or a lateral_sigma_px the model refuses (NoiseParams::validate).
 [[nodiscard]] NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames,
                                             const io::Intrinsics& intrinsics,
                                             const DepthStats& stats, const DepthStats* shape,
