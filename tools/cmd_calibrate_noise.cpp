@@ -240,7 +240,7 @@ int run_calibrate(const CalibrateOptions& o) {
     throw io::InputError("--lateral-sigma-px: only the two-scale structure casts the frames "
                          "(--structure " + o.structure + ")");
   if (o.lateral_given) {  // the model's own range (LateralNoise), before any frame is read
-    sim::NoiseParams jitter = sim::NoiseParams::sr300_one_field();
+    sim::NoiseParams jitter;
     jitter.lateral.sigma_px = o.lateral_sigma_px;
     try {
       jitter.validate();
@@ -347,8 +347,7 @@ Runner add_calibrate_noise(CLI::App& app) {
   CLI::Option* lateral =
       app.add_option("--lateral-sigma-px", o->lateral_sigma_px,
                      "two-scale: the lateral jitter [px] the frames are cast with and the block "
-                     "keeps (default: sr300-one-field's 0.1 px estimate; not searched)")
-;
+                     "keeps (default: the sr300-one-field preset's estimate; not searched)");
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");

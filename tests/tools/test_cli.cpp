@@ -1670,6 +1670,23 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   const sim::AxialNoise scales = sim::load_scene(dir / "scene3.yaml").noise.axial;
   EXPECT_FALSE(scales.low_angle_term);
   EXPECT_GT(scales.low_share, 0.5);
+  // --lateral-sigma-px: the block keeps the jitter the frames were cast with, and says so
+  // (no sweep: the start alone, a few seconds).
+  const fs::path jitter = dir / "jitter.yaml";
+  const CliRun r4 = run("calibrate-noise --structure two-scale --sweeps 0 --draws 1 "
+                        "--lateral-sigma-px 0.05 --quiet --input " + (real / "frames").string() +
+                            " --intrinsics " + (real / "intrinsics.json").string() + " --out " +
+                            jitter.string(),
+                        dir);
+  EXPECT_EQ(r4.code, 0) << r4.err;
+  const std::string text4 = slurp_text(jitter);
+  EXPECT_NE(text4.find("# note: lateral.sigma_px 0.05 px as given, dropouts.min_signal kept"),
+            std::string::npos)
+      << text4;
+  std::ofstream(dir / "scene4.yaml") << "duration_s: 0.1\n" << text4;
+  const sim::LateralNoise lateral = sim::load_scene(dir / "scene4.yaml").noise.lateral;
+  EXPECT_TRUE(lateral.enabled);
+  EXPECT_EQ(lateral.sigma_px, 0.05);
 }
 
 TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {

@@ -152,8 +152,9 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
     throw std::invalid_argument("fit_noise_rerendered: draws = " + std::to_string(params.draws) +
                                 ": must be >= 1");
   if (params.lateral_sigma_px) {
-    // The model's own range check (LateralNoise's fields), before any work.
-    NoiseParams jitter = start;
+    // The model's own range check (LateralNoise's fields), before any work, on a block
+    // that is valid but for it (so that the error is the jitter's, whatever `start` holds).
+    NoiseParams jitter;
     jitter.lateral.sigma_px = *params.lateral_sigma_px;
     try {
       jitter.validate();
@@ -162,7 +163,10 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
     }
   }
   NoiseFit fit = fit_noise(stats, start, shape, NoiseStructure::one_field);
-  if (params.lateral_sigma_px) fit.params.lateral.sigma_px = *params.lateral_sigma_px;
+  if (params.lateral_sigma_px) {  // switched on, so that the casts use what was given
+    fit.params.lateral.enabled = true;
+    fit.params.lateral.sigma_px = *params.lateral_sigma_px;
+  }
   const NoiseParams base = fit.params;
   // The search fits max_incidence, which the one-field fit keeps.
   char given[96];

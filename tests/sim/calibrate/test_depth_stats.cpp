@@ -853,12 +853,13 @@ TEST(DepthStats, RerenderedFitCastsWithTheLateralJitterGiven) {
       fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
   EXPECT_EQ(start.params.lateral.sigma_px, NoiseParams::sr300_one_field().lateral.sigma_px);
   EXPECT_NE(noted_mismatch(start).first, cost);
+  // Refused up front, by the fit (the sensor would refuse it too, later, in its own words).
   p.lateral_sigma_px = -0.5;
-  EXPECT_NE(test::error_of<std::invalid_argument>([&] {
-              (void)fit_noise_rerendered(t.frames, t.K, t.stats, nullptr,
-                                         NoiseParams::sr300_one_field(), p);
-            }).find("lateral.sigma_px"),
-            std::string::npos);
+  const std::string e = test::error_of<std::invalid_argument>([&] {
+    (void)fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
+  });
+  EXPECT_EQ(e.rfind("fit_noise_rerendered: lateral_sigma_px: noise.lateral.sigma_px = -0.5", 0), 0u)
+      << e;
 }
 
 // The estimator's reading of correlated noise: white reads white with the plane fit's own

@@ -325,7 +325,7 @@ struct RerenderFitParams {
   int draws = 4;
   int threads = 0;         ///< OpenMP threads of each render (0: the default); any gives the same fit
   /// The lateral jitter the frames are cast with and the fit keeps [px]
-  /// (LateralNoise::sigma_px; 0: none); unset, the start's (sr300-one-field's
+  /// (LateralNoise::sigma_px, switched on; 0: none); unset, the start's (sr300-one-field's
   /// 0.1 px estimate). Not searched: each value needs its own casts. On the shared frames
   /// the noise-free re-render reads a quadratic-fit sigma at 0-15 deg of 0.080 mm with
   /// 0.1 px and 0.045 mm with none, the camera 0.161 mm (docs/sensor.md, "The lateral
