@@ -206,6 +206,7 @@ inline nlohmann::json stats_series(const sim::DepthStats& s) {
   return {{"sigma_by_depth", bins(s.sigma_by_depth, 1.0)},
           {"sigma_by_angle", bins(s.sigma_by_angle, kDegPerRad)},
           {"sigma_quad_by_angle", bins(s.sigma_quad_by_angle, kDegPerRad)},
+          {"sigma_quad_by_depth", bins(s.sigma_quad_by_depth, 1.0)},
           {"correlation_rows", s.correlation_rows},
           {"correlation_cols", s.correlation_cols},
           {"shadow_gap_px", shadow.gap_px},

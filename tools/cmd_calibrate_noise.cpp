@@ -96,6 +96,7 @@ nlohmann::json stats_json(const sim::DepthStats& s) {
           {"residual_correlation_rows_lag_1_to_6_px", s.correlation_rows},
           {"residual_correlation_columns_lag_1_to_6_px", s.correlation_cols},
           {"quadratic_sigma_by_angle_deg", bins(s.sigma_quad_by_angle, kDegPerRad)},
+          {"quadratic_sigma_by_depth_m", bins(s.sigma_quad_by_depth, 1.0)},
           {"quadratic_beats_plane", s.quad_beats_plane},
           {"sigma_by_window", scales(s.scales)},
           {"neighbour_pairs", s.neighbour_pairs},
@@ -187,6 +188,12 @@ void print_report(std::ostream& os, const sim::DepthStats& s, const sim::NoiseFi
       os << "  deg [" << std::setprecision(0) << b.lo * kDegPerRad << ", " << b.hi * kDegPerRad
          << ")  windows " << std::setw(5) << b.windows << "  sigma_mm " << std::setprecision(2)
          << b.sigma * 1e3 << "\n";
+  os << "quadratic-fit sigma by depth (incidence under " << std::setprecision(0)
+     << s.depth_bin_max_angle * kDegPerRad << " deg):\n";
+  for (const sim::SigmaBin& b : s.sigma_quad_by_depth)
+    if (b.windows > 0)
+      os << "  z_m [" << std::setprecision(2) << b.lo << ", " << b.hi << ")  windows "
+         << std::setw(5) << b.windows << "  sigma_mm " << b.sigma * 1e3 << "\n";
   os << "windows where a quadratic's sigma is below " << sim::kQuadBeatsPlane
      << " x the plane's: " << std::setprecision(0) << 100 * s.quad_beats_plane << "%\n";
   for (const auto& sc : s.scales)

@@ -90,6 +90,7 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
   out.push_back({"correlation lag 1 px", r.correlation[0], s.correlation[0]});
   out.push_back({"correlation lag 2 px", r.correlation[1], s.correlation[1]});
   bins(r.sigma_quad_by_angle, s.sigma_quad_by_angle, "quadratic deg", kDegPerRad, 0);
+  bins(r.sigma_quad_by_depth, s.sigma_quad_by_depth, "quadratic z_m", 1.0, 2);
   for (int l = 0; l < sim::kCorrelationLags; ++l) {
     const std::string lag = std::to_string(l + 1);
     out.push_back({"correlation rows lag " + lag + " px", r.correlation_rows[l], s.correlation_rows[l]});

@@ -43,13 +43,13 @@ def main(out_dir):
              dict(color="tab:blue", marker="^"), dict(color="tab:green", marker="v")]
     style = {label: looks[i % len(looks)] for i, (label, _) in enumerate(series)}
 
-    def sigma(key, xlabel, name, title):
+    def sigma(key, xlabel, name, title, ylabel="plane-fit sigma [mm]"):
         fig, ax = plt.subplots(figsize=(5.5, 4))
         for label, s in series:
             pts = s.get(key, [])
             ax.plot([p["centre"] for p in pts], [p["sigma_mm"] for p in pts], label=label, **style[label])
         ax.set_xlabel(xlabel)
-        ax.set_ylabel("plane-fit sigma [mm]")
+        ax.set_ylabel(ylabel)
         ax.set_title(title)
         ax.grid(alpha=0.3)
         ax.legend()
@@ -60,6 +60,11 @@ def main(out_dir):
           "Axial noise against depth (incidence < 30 deg)")
     sigma("sigma_by_angle", "incidence [deg] (bin median)", "sigma_angle.png",
           "Axial noise against incidence")
+    # The pixel-scale noise against depth (issue 20): what a quadratic leaves.
+    if any("sigma_quad_by_depth" in s for _, s in series):
+        sigma("sigma_quad_by_depth", "depth [m] (bin median)", "sigma_quad_depth.png",
+              "What a quadratic leaves against depth (incidence < 30 deg)",
+              "quadratic-fit sigma [mm]")
 
     # The structure (issue 20): what a quadratic leaves by incidence, and how far the
     # residual stays correlated along rows (solid) and columns (dashed).

@@ -67,10 +67,10 @@ CliRun run(const std::string& args, const fs::path& dir, const std::string& env 
 // The real SR305 recording (tests/data/sr305-hand).
 const fs::path kSr305 = fs::path(LINKSIGHT_TEST_DATA_DIR) / "sr305-hand";
 
-// The four figures calibrate-noise and fidelity draw, each a real PNG, in `dir`.
+// The figures calibrate-noise and fidelity draw, each a real PNG, in `dir`.
 void expect_stats_figures(const fs::path& dir) {
-  for (const char* fig :
-       {"sigma_depth.png", "sigma_angle.png", "shadow_band.png", "holes.png", "structure.png"})
+  for (const char* fig : {"sigma_depth.png", "sigma_angle.png", "sigma_quad_depth.png",
+                          "shadow_band.png", "holes.png", "structure.png"})
     EXPECT_GT(fs::exists(dir / fig) ? fs::file_size(dir / fig) : 0u, 1000u) << dir / fig;
 }
 
@@ -208,9 +208,9 @@ TEST_F(Cli, RunPrintSceneWritesTheResolvedScene) {
                        "--print-scene --out " + out.string(), dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_FALSE(fs::exists(out));
-  EXPECT_NE(r.out.find("\nnoise:\n  axial:\n    enabled: true\n    a_m: 0.000256\n"),
+  EXPECT_NE(r.out.find("\nnoise:\n  axial:\n    enabled: true\n    a_m: 0.00028\n"),
             std::string::npos)
-      << r.out;  // the preset's 0.128 mm, scaled: every field in full
+      << r.out;  // the preset's 0.140 mm, scaled: every field in full
   EXPECT_NE(r.out.find("\n  mode: accelerated-som\n"), std::string::npos) << r.out;
   fs::create_directories(dir / "elsewhere");
   std::ofstream(dir / "elsewhere" / "resolved.yaml") << r.out;
@@ -1658,12 +1658,12 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
                         dir);
   EXPECT_EQ(r3.code, 0) << r3.err;
   const std::string text3 = slurp_text(scaled);
-  // The render count is the search's path (12-13 here), not a setting, so only its bounds
-  // are pinned: the start, then each of the 9 parameters tried one way at least and both
-  // ways at most in the one sweep (10-19).
+  // The render count is the search's path, not a setting, so only its bounds are pinned:
+  // the start, then each of the 10 parameters tried one way at least and both ways at most
+  // in the one sweep (11-21).
   EXPECT_TRUE(std::regex_search(
       text3, std::regex("# note: two-scale structure by re-rendering 11 frames, 2 draws each "
-                        "\\((1[0-9]) renders, 1 sweeps\\)")))
+                        "\\((1[1-9]|2[01]) renders, 1 sweeps\\)")))
       << text3;
   EXPECT_NE(text3.find("# note: lateral.sigma_px and dropouts.min_signal kept"), std::string::npos) << text3;
   std::ofstream(dir / "scene3.yaml") << "duration_s: 0.1\n" << text3;

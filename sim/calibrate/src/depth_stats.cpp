@@ -470,6 +470,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   s.sigma_by_depth = bins(p.depth_edges, true);
   s.sigma_by_angle = bins(p.angle_edges, false);
   s.sigma_quad_by_angle = bins(p.angle_edges, false, &DepthStats::Window::sigma_quad);
+  s.sigma_quad_by_depth = bins(p.depth_edges, true, &DepthStats::Window::sigma_quad);
   for (int l = 0; l < 4; ++l)
     s.correlation[static_cast<std::size_t>(l)] =
         corr.aa[l] > 0 && corr.bb[l] > 0 ? corr.ab[l] / std::sqrt(corr.aa[l] * corr.bb[l]) : 0;
@@ -703,7 +704,10 @@ double AxialReading::sigma(double z, double theta) const {
   const double s = axial_.sigma(p);
   if (axial_.low_angle_term || !(axial_.low_share > 0)) return std::sqrt(mix_) * s;
   const double base = axial_.base(p), t = s - base;
-  return std::sqrt(base * base * mix_ + t * t * pixel_);
+  // mix_ reads the two fields at their shares; the power moves the pixel-scale one's.
+  const double r = axial_.pixel_depth_factor(z);
+  return std::sqrt(base * base * (mix_ + (1 - axial_.low_share) * pixel_ * (r * r - 1)) +
+                   t * t * pixel_);
 }
 
 SurfaceRender render_surface(const io::DepthImage& depth, const io::Intrinsics& K,

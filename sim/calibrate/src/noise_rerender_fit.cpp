@@ -54,6 +54,7 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
   bins(real.sigma_by_angle, sim.sigma_by_angle, "sigma deg", 180 / std::numbers::pi);
   bins(real.sigma_quad_by_angle, sim.sigma_quad_by_angle, "quadratic sigma deg",
        180 / std::numbers::pi);
+  bins(real.sigma_quad_by_depth, sim.sigma_quad_by_depth, "quadratic sigma z_cm", 100);
   for (int l = 0; l < 4; ++l) {
     for (const bool rows : {true, false}) {
       const double r =
@@ -110,16 +111,18 @@ struct Cast {
 // pixel-scale widths along rows and columns [px], the low field's [px] and share,
 // dropouts.max_incidence [deg], and the hole rate's scale over the one-field fit's (which
 // counts every interior hole as a drawn one; the steeper incidence cut-off leaves holes of
-// its own, about 3.6 a frame on the shared frames).
-constexpr int kParams = 9;
+// its own, about 3.6 a frame on the shared frames), and the pixel-scale field's depth
+// power (the quadratic-fit sigma by depth pins it: the camera's grows faster with depth
+// than a + c z^2; docs/sensor.md, "The pixel-scale noise by depth").
+constexpr int kParams = 10;
 using Vec = std::array<double, kParams>;
-constexpr Vec kStart = {4, 2, 2, 2, 8, 8, 0.95, 0, 1};  // max_incidence: the start's
-constexpr Vec kStep = {1, 0.5, 0.4, 0.4, 2, 2, 0.02, 3, 0.1};
+constexpr Vec kStart = {4, 2, 2, 2, 8, 8, 0.95, 0, 1, 0};  // max_incidence: the start's
+constexpr Vec kStep = {1, 0.5, 0.4, 0.4, 2, 2, 0.02, 3, 0.1, 0.5};
 // The low field on a grid of 2 px (AxialNoise::low_stride_px): within the sensor's time
 // budget (bench/README.md), and its widths kept to 3 strides or more.
 constexpr int kLowStridePx = 2;
-constexpr Vec kLo = {0.5, 0, 0.4, 0.4, 3 * kLowStridePx, 3 * kLowStridePx, 0, 40, 0};
-constexpr Vec kHi = {20, 20, 8, 8, 20, 20, 0.998, 89, 2};
+constexpr Vec kLo = {0.5, 0, 0.4, 0.4, 3 * kLowStridePx, 3 * kLowStridePx, 0, 40, 0, -2};
+constexpr Vec kHi = {20, 20, 8, 8, 20, 20, 0.998, 89, 2, 4};
 
 NoiseParams candidate(const NoiseParams& base, const Vec& x) {
   NoiseParams n = base;
@@ -137,6 +140,7 @@ NoiseParams candidate(const NoiseParams& base, const Vec& x) {
   ax.low_stride_px = kLowStridePx;
   n.dropouts.max_incidence = x[7] * std::numbers::pi / 180;
   n.dropouts.hole_rate = base.dropouts.hole_rate * x[8];
+  ax.pixel_depth_power = x[9];
   return n;
 }
 
@@ -167,6 +171,16 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
     fit.params.lateral.enabled = true;
     fit.params.lateral.sigma_px = *params.lateral_sigma_px;
   }
+  // The power is measured where the camera's frames hold windows (the bins the mismatch
+  // reads), and held there beyond.
+  bool measured = false;
+  for (const SigmaBin& b : stats.sigma_quad_by_depth)
+    if (b.windows >= 10) {
+      AxialNoise& ax = fit.params.axial;
+      if (!measured) ax.pixel_depth_min_m = b.lo;
+      ax.pixel_depth_max_m = b.hi;
+      measured = true;
+    }
   const NoiseParams base = fit.params;
   // The search fits max_incidence, which the one-field fit keeps.
   char given[96];
@@ -239,11 +253,12 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
       "sweeps): axial a, c "
       "x%.3g and k_theta x%.3g of the one-field fit's, pixel-scale field %.2f x %.2f px "
       "with the angle term, low-frequency field %.2f x %.2f px with %.4f of a + c z^2, "
+      "pixel-scale share x (z / %.2f m)^%.3g over %.2f-%.2f m, "
       "dropouts.max_incidence %.1f deg, hole rate x%.3g; target mismatch %.3g (start "
       "%.3g) over the issue-20 statistics",
       frames.size(), params.draws, params.draws == 1 ? "" : "s", evaluations, params.sweeps,
       x[0], x[1], ax.correlation_px, ax.correlation_cols_px, ax.low_rows_px, ax.low_cols_px,
-      ax.low_share, x[7], x[8], best.cost, start_cost);
+      ax.low_share, ax.pixel_depth_ref_m, x[9], ax.pixel_depth_min_m, ax.pixel_depth_max_m, x[7], x[8], best.cost, start_cost);
   fit.notes.emplace_back(line);
   std::string out = "outside 0.8-1.25 on the fitted frames:";
   for (const std::string& o : best.outside) out += " " + o + ";";

@@ -41,17 +41,23 @@ NoiseParams NoiseParams::sr300() {
   // sr300 preset"), rounded to the digits the fit resolves; the terms it leaves out
   // (lateral jitter, min_signal, theta_cap, hole sizes) as in the one-field preset.
   NoiseParams p;
-  p.axial.a = 0.000128;        // 0.128 mm
-  p.axial.c = 0.00248;         // 2.48 mm/m^2
-  p.axial.k_theta = 0.000526;  // m^1.5
-  p.axial.correlation_px = 2.02;
-  p.axial.correlation_cols_px = 2.65;
-  p.axial.low_share = 0.961;
+  p.axial.a = 0.00014;         // 0.140 mm
+  p.axial.c = 0.0027;          // 2.70 mm/m^2
+  p.axial.k_theta = 0.000595;  // m^1.5
+  p.axial.correlation_px = 2.4;
+  p.axial.correlation_cols_px = 2.6;
+  p.axial.low_share = 0.965;
   p.axial.low_rows_px = 6;
-  p.axial.low_cols_px = 6.12;
+  p.axial.low_cols_px = 8.5;
   p.axial.low_angle_term = false;
   p.axial.low_stride_px = 2;
-  p.dropouts.max_incidence = 71.0 * (std::numbers::pi / 180.0);  // as a scene reads 71
+  // The pixel-scale field's share of a + c z^2 scaled by (z / 0.65 m)^3.125, over the depths
+  // the frames hold windows at (docs/sensor.md, "The pixel-scale noise by depth").
+  p.axial.pixel_depth_power = 3.125;
+  p.axial.pixel_depth_ref_m = 0.65;
+  p.axial.pixel_depth_min_m = 0.5;
+  p.axial.pixel_depth_max_m = 0.9;
+  p.dropouts.max_incidence = 71.25 * (std::numbers::pi / 180.0);  // as a scene reads 71.25
   p.dropouts.hole_rate = 51.5;
   p.edges.drop_steps = true;
   return p;
@@ -91,6 +97,13 @@ void NoiseParams::validate() const {
         fields::fail("noise", key, w,
                      "must be >= 2 x low_stride_px (" + std::to_string(axial.low_stride_px) +
                          "): a coarser grid shows in the field");
+  if (axial.pixel_depth_power != 0 && !(axial.low_share > 0 && !axial.low_angle_term))
+    fields::fail("noise", "axial.pixel_depth_power", axial.pixel_depth_power,
+                 "needs low_share > 0 and low_angle_term false (it scales the pixel-scale "
+                 "field apart from the low one)");
+  if (!(axial.pixel_depth_max_m > axial.pixel_depth_min_m))
+    fields::fail("noise", "axial.pixel_depth_max_m", axial.pixel_depth_max_m,
+                 "must be > pixel_depth_min_m (" + format_shortest(axial.pixel_depth_min_m) + ")");
   if (axial.correlation_cols_px > 0 && !(axial.correlation_px > 0))
     fields::fail("noise", "axial.correlation_cols_px", axial.correlation_cols_px,
                  "needs correlation_px > 0 (a white pixel-scale term has no width)");

@@ -500,11 +500,14 @@ TEST(HeldOutFidelity, TheSr300PresetIsTheTwoScaleFit) {
   test::expect_fields_near(fit, NoiseParams::sr300(),
                            {"axial.a_m", "axial.c_per_m", "axial.k_theta", "axial.correlation_px",
                             "axial.correlation_cols_px", "axial.low_share", "axial.low_rows_px",
-                            "axial.low_cols_px", "dropouts.max_incidence_deg",
-                            "dropouts.hole_rate"},
+                            "axial.low_cols_px", "axial.pixel_depth_power",
+                            "dropouts.max_incidence_deg", "dropouts.hole_rate"},
                            kPresetRelTol);
+  // The power's range is the depth bins the frames fill: exact.
   test::expect_fields_near(fit, NoiseParams::sr300(),
-                           {"axial.low_angle_term", "axial.low_stride_px", "edges.drop_steps"}, 0);
+                           {"axial.low_angle_term", "axial.low_stride_px", "axial.pixel_depth_ref_m",
+                            "axial.pixel_depth_min_m", "axial.pixel_depth_max_m", "edges.drop_steps"},
+                           0);
 }
 
 // The shape correction's render (rerender_surfaces with the noise off, so no lateral
@@ -654,9 +657,9 @@ TEST(DepthStats, TargetMismatchCountsTheIssuesStatistics) {
   const TargetMismatch self = target_mismatch(real, real);
   EXPECT_EQ(self.cost, 0.0);
   EXPECT_TRUE(self.outside.empty());
-  // 4 + 5 + 5 sigma bins, 8 correlations, the share, 2 band pixels and the band's width,
-  // flying, holes.
-  EXPECT_EQ(self.statistics, 28);
+  // 4 + 5 + 5 + 4 sigma bins (plane by depth and by angle, quadratic by angle and by
+  // depth), 8 correlations, the share, 2 band pixels and the band's width, flying, holes.
+  EXPECT_EQ(self.statistics, 32);
   ASSERT_LT(std::abs(real.correlation_rows[3]), kSmallCorrelation);  // -0.13
   ASSERT_GE(real.quad_beats_plane, kSmallCorrelation);
   DepthStats sim = real;
@@ -678,13 +681,13 @@ TEST(DepthStats, TargetMismatchCountsTheIssuesStatistics) {
   ASSERT_GE(steep.windows, 10);
   steep.windows = kMinSimWindows - 1;
   const TargetMismatch lost = target_mismatch(real, sim);
-  EXPECT_EQ(lost.statistics, 28);
+  EXPECT_EQ(lost.statistics, 32);
   EXPECT_GT(lost.cost, 100.0);
   // A simulation whose bands decide no side is compared on the camera's image side.
   ASSERT_LT(real.projector_side, 0);  // projector image-left: the other side is near_right
   sim = real;
   sim.projector_side = 0;
-  EXPECT_EQ(target_mismatch(real, sim).statistics, 28);
+  EXPECT_EQ(target_mismatch(real, sim).statistics, 32);
   sim.near_right.band_median_px = 2 * real.near_right.band_median_px;
   EXPECT_NE(target_mismatch(real, sim).outside.back().find("other side band median px 2.00"),
             std::string::npos);
@@ -744,7 +747,7 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   one.params.validate();
   // "... target mismatch X (start Y) ...": X < Y (the start is not the fit).
   const auto [cost, start] = noted_mismatch(one);
-  EXPECT_LT(cost, start) << "one sweep of up to 18 renders found nothing better than the start";
+  EXPECT_LT(cost, start) << "one sweep of up to 20 renders found nothing better than the start";
   for (const std::string& n : one.notes)
     EXPECT_EQ(n.find("max_incidence, min_signal kept"), std::string::npos) << n;
   EXPECT_NE(test::error_of<std::invalid_argument>([&] {
@@ -1202,6 +1205,36 @@ TEST(DepthStats, CurvatureWithinTheWindowIsTakenUpByAQuadratic) {
     EXPECT_LT(s.sigma_quad_by_angle[k].sigma, 0.5 * s.sigma_by_angle[k].sigma) << "bin " << k;
   }
   EXPECT_GT(bins, 0);
+}
+
+// Quadratic-fit sigma by depth (issue 20): two walls, at 0.65 m with 0.2 mm of white noise
+// and at 0.75 m with 0.6 mm, each read in its own depth bin, from the windows sigma_by_depth
+// reads; by incidence they pool.
+TEST(DepthStats, QuadraticSigmaByDepthReadsEachDepthsNoise) {
+  const std::vector<double> near_noise = white_field(11, 0.0002, 300 * 225);
+  const std::vector<double> far_noise = white_field(12, 0.0006, 300 * 225);
+  io::Intrinsics K;
+  const io::DepthImage near_wall =
+      wall(K, [&](int u, int v) { return 0.05 + near_noise[v * 300 + u]; });
+  const io::DepthImage far_wall = wall(K, [&](int u, int v) { return 0.15 + far_noise[v * 300 + u]; });
+  const DepthStats s = depth_stats({near_wall, far_wall}, K);
+  ASSERT_EQ(s.sigma_quad_by_depth.size(), s.sigma_by_depth.size());
+  for (std::size_t k = 0; k < s.sigma_by_depth.size(); ++k)
+    EXPECT_EQ(s.sigma_quad_by_depth[k].windows, s.sigma_by_depth[k].windows) << "bin " << k;
+  const auto bin_at = [&](double z) {
+    for (const SigmaBin& b : s.sigma_quad_by_depth)
+      if (z >= b.lo && z < b.hi) return b;
+    return SigmaBin{};
+  };
+  const SigmaBin near = bin_at(0.65), far = bin_at(0.75);
+  ASSERT_GT(near.windows, 100);
+  ASSERT_EQ(far.windows, near.windows);
+  EXPECT_NEAR(near.sigma, 0.0002, 0.1 * 0.0002);  // 0.1 mm quantization adds 3 um
+  EXPECT_NEAR(far.sigma, 0.0006, 0.1 * 0.0006);
+  EXPECT_NEAR(far.centre, 0.75, 0.005);
+  int by_angle = 0;  // every window once, whatever its incidence
+  for (const SigmaBin& b : s.sigma_quad_by_angle) by_angle += b.windows;
+  EXPECT_EQ(by_angle, near.windows + far.windows);
 }
 
 // Valid neighbours across a 100 mm step are jumps, one per row; an invalid column between

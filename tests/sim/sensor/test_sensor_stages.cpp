@@ -39,7 +39,7 @@ struct Plate {
   }
 };
 
-// The axial field of `n` (the other terms off) on a plate at 0.6 m over 4 frames, every
+// The axial field of `n` (the other terms off) on a plate at `z` (0.6 m) over 4 frames, every
 // pixel at incidence `theta` [rad]: its sigma [m] and its correlation at lags 0..lags
 // along rows and along columns, over pixels at least `border` from the image's edge (the
 // filters' reach); the first frame's depth (with `threads`).
@@ -48,9 +48,9 @@ struct PlateField {
   std::vector<double> rows, cols;
   std::vector<float> first;
 };
-PlateField plate_field(const NoiseParams& n, int lags, int border, double theta = 0, int threads = 2) {
+PlateField plate_field(const NoiseParams& n, int lags, int border, double theta = 0, int threads = 2,
+                       double z = 0.6) {
   const CameraParams camera;
-  const double z = 0.6;
   const Plate plate(camera.intrinsics, z, theta);
   SensorNoise noise(n, camera);
   std::vector<double> rows(static_cast<std::size_t>(lags) + 1), cols(rows.size());
@@ -335,6 +335,62 @@ TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
     // The same image for 1 thread (steep) and 3.
     EXPECT_EQ(plate_field(n, 0, kBorder, theta, 3).first, steep.first);
   }
+}
+
+// The pixel-scale field's depth power (issue 20): on a plate at depth z the pixel-scale
+// field carries (1 - s) (a r^p)^2 of the variance, r = z' / ref with z' held to the
+// measured range, and the low field s a^2, so sigma^2 = ((1 - s) r^(2p) + s) a^2 and the
+// lag-L correlation mixes the two fields' by those shares. At the reference depth nothing
+// changes; beyond the range the factor is the one at its end, not the power law's.
+TEST(SensorNoise, PixelDepthPowerScalesThePixelScaleFieldOnly) {
+  constexpr double kSigma = 0.002;  // a [m]
+  constexpr double kShare = 0.8, kPixelPx = 1.0, kLowPx = 6.0, kPower = 2.0, kRef = 0.6;
+  constexpr double kRhoTol = 0.04;  // as the test above
+  NoiseParams n = NoiseParams::off();
+  n.axial.enabled = true;
+  n.axial.a = kSigma;
+  n.axial.c = 0;
+  n.axial.k_theta = 0;
+  n.axial.correlation_px = kPixelPx;
+  n.axial.low_share = kShare;
+  n.axial.low_rows_px = kLowPx;
+  n.axial.low_cols_px = kLowPx;
+  n.axial.low_angle_term = false;
+  n.axial.pixel_depth_power = kPower;
+  n.axial.pixel_depth_ref_m = kRef;
+  n.axial.pixel_depth_min_m = 0.3;
+  n.axial.pixel_depth_max_m = 0.8;
+  const auto rho = [](int l, double w) { return std::exp(-l * l / (4 * w * w)); };
+  constexpr int kLags = 4, kBorder = 20;
+  // z, and the depth the factor is read at: 1.0 m is past the range's end, 0.8 m.
+  for (const auto& [z, held] : {std::pair{0.6, 0.6}, std::pair{0.75, 0.75}, std::pair{1.0, 0.8}}) {
+    SCOPED_TRACE("z " + std::to_string(z));
+    const double r2p = std::pow(held / kRef, 2 * kPower);
+    const double pixel = (1 - kShare) * r2p, total = pixel + kShare;  // of a^2
+    const PlateField f = plate_field(n, kLags, kBorder, 0, 2, z);
+    EXPECT_NEAR(f.sigma, std::sqrt(total) * kSigma, kStageSigmaRelTol * std::sqrt(total) * kSigma);
+    for (int l = 1; l <= kLags; ++l) {
+      const double model = (pixel * rho(l, kPixelPx) + kShare * rho(l, kLowPx)) / total;
+      EXPECT_NEAR(f.rows[l], model, kRhoTol) << "lag " << l;
+      EXPECT_NEAR(f.cols[l], model, kRhoTol) << "lag " << l;
+    }
+  }
+  // The unheld power law would read 1.53 a at 1.0 m, where the held factor gives 1.20 a:
+  // more than the tolerance apart, so the check above tells them apart.
+  ASSERT_GT(std::sqrt((1 - kShare) * std::pow(1.0 / kRef, 2 * kPower) + kShare) -
+                std::sqrt((1 - kShare) * std::pow(0.8 / kRef, 2 * kPower) + kShare),
+            2 * kStageSigmaRelTol * 1.2);
+  // The power needs the two fields apart, and the range must be one.
+  NoiseParams bad = n;
+  bad.axial.low_angle_term = true;
+  std::string e = test::error_of<std::invalid_argument>([&] { (void)SensorNoise(bad, CameraParams{}); });
+  EXPECT_NE(e.find("noise.axial.pixel_depth_power = 2: needs low_share > 0 and low_angle_term false"),
+            std::string::npos) << e;
+  bad = n;
+  bad.axial.pixel_depth_max_m = 0.3;
+  e = test::error_of<std::invalid_argument>([&] { (void)SensorNoise(bad, CameraParams{}); });
+  EXPECT_NE(e.find("noise.axial.pixel_depth_max_m = 0.3: must be > pixel_depth_min_m (0.3)"),
+            std::string::npos) << e;
 }
 
 // The new settings at their defaults are the one-field model, bit for bit (old scenes keep

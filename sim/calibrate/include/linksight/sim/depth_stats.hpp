@@ -102,6 +102,9 @@ struct DepthStats {
   std::array<double, kCorrelationLags> correlation_rows{}, correlation_cols{};
   /// Median quadratic-fit sigma per incidence bin (the bins of sigma_by_angle).
   std::vector<SigmaBin> sigma_quad_by_angle;
+  /// Median quadratic-fit sigma per depth bin, of the windows sigma_by_depth reads (under
+  /// depth_bin_max_angle): how the pixel-scale noise grows with depth.
+  std::vector<SigmaBin> sigma_quad_by_depth;
   /// Share of the accepted windows whose quadratic-fit sigma is below kQuadBeatsPlane times
   /// their plane-fit sigma: how much of the noise varies over the window, not pixel to pixel.
   double quad_beats_plane = 0;
@@ -298,7 +301,7 @@ inline constexpr NoiseStructure kNoiseStructures[] = {NoiseStructure::one_field,
 /// under kSmallCorrelation in magnitude, |sim - real| / kSmallCorrelationTol; `cost` sums
 /// e^2 (so a fit centres every statistic in its band, rather than stopping inside it, which
 /// held out leaves less at its edges) over: the plane-fit sigma per depth
-/// bin and per angle bin and the quadratic-fit sigma per angle bin (bins with 10 windows in
+/// bin and per angle bin and the quadratic-fit sigma per angle bin and per depth bin (bins with 10 windows in
 /// the camera's frames; see kMinSimWindows), the correlation along rows and along columns at lags 1-4, the
 /// quadratic-beats-plane share, the first and second pixel past the near surface invalid
 /// and the median band width on the side away from the projector (where the camera's frames
@@ -318,7 +321,7 @@ inline constexpr int kMinSimWindows = 5;
 
 /// How fit_noise_rerendered searches.
 struct RerenderFitParams {
-  int sweeps = 12;         ///< pattern-search sweeps (at most 2 renders per parameter: 18)
+  int sweeps = 12;         ///< pattern-search sweeps (at most 2 renders per parameter: 20)
   std::uint64_t seed = 1;  ///< of the renders' noise draws
   /// Noise draws per frame that each candidate is read over, pooled (rerender_surfaces'
   /// draws): the search then follows the model's expected statistics, not one draw's.
@@ -337,8 +340,10 @@ struct RerenderFitParams {
 /// model (fit_noise), then each frame's surface is cast once (depth_surface_mesh, that
 /// fit's projector and lateral jitter, or params.lateral_sigma_px) and a pattern search over the axial a and c (one
 /// scale), k_theta, the pixel-scale field's widths along rows and columns,
-/// the low field's widths and share (on a 2 px grid), dropouts.max_incidence and the hole
-/// rate (a scale) re-applies the noise model to the casts and minimizes
+/// the low field's widths and share (on a 2 px grid), the pixel-scale field's depth power
+/// (AxialNoise::pixel_depth_power, about 0.65 m and held to the depth bins where `stats`
+/// has 10 windows), dropouts.max_incidence and the hole rate (a scale) re-applies the
+/// noise model to the casts and minimizes
 /// target_mismatch(stats, their statistics). Everything else is the one-field fit's. Deterministic: the same frames and params give the same fit for any thread
 /// count. The notes add the start, the final cost and what stays outside the band. Throws
 /// as fit_noise and depth_surface_mesh do, and std::invalid_argument for sweeps < 0,

@@ -8,6 +8,8 @@
 /// (docs/sensor.md, "The sr300 preset", says where each value comes from); values marked
 /// "estimate" are not measured.
 
+#include <algorithm>
+#include <cmath>
 #include <numbers>
 #include <string>
 #include <string_view>
@@ -76,6 +78,25 @@ struct AxialNoise {
   /// dips: at a cell's centre to 0.97 of 1 for widths of 3 strides, 0.94 for 2 (the least
   /// accepted); the correlation stays within 0.01 of the Gaussian's from 3 strides.
   int low_stride_px = 1;
+  /// With the low field apart from the angle term (low_share > 0, low_angle_term false):
+  /// the pixel-scale field's share of a + c z^2 is scaled by r^p, r = z' / pixel_depth_ref_m
+  /// with z' the depth held to [pixel_depth_min_m, pixel_depth_max_m], so that it can grow
+  /// with depth faster than the low field, as the camera's does (docs/sensor.md, "The
+  /// pixel-scale noise by depth"). The pixel's sigma is then sqrt((1 - low_share) ((a +
+  /// c z^2) r^p)^2 + t^2) in the pixel-scale field and sqrt(low_share) (a + c z^2) in the
+  /// low one. The range is where the power was measured: a power law is not extrapolated.
+  /// 0: as before the term existed.
+  double pixel_depth_power = 0;
+  double pixel_depth_ref_m = 0.65;  ///< [m] the depth at which the power changes nothing
+  double pixel_depth_min_m = 0;     ///< [m] nearer, the factor is the one at this depth
+  double pixel_depth_max_m = 10;    ///< [m] farther, the factor is the one at this depth
+  /// r^pixel_depth_power (above): what the pixel-scale field's share of a + c z^2 is scaled
+  /// by at depth z [m]; 1 when the power is 0.
+  [[nodiscard]] double pixel_depth_factor(double z) const {
+    if (pixel_depth_power == 0) return 1.0;
+    return std::pow(std::clamp(z, pixel_depth_min_m, pixel_depth_max_m) / pixel_depth_ref_m,
+                    pixel_depth_power);
+  }
   /// The pixel-scale term's widths along rows and columns [px] (0: white).
   [[nodiscard]] double rows_px() const { return correlation_px; }
   [[nodiscard]] double cols_px() const {
@@ -113,6 +134,10 @@ struct AxialNoise {
     ar("low_cols_px", low_cols_px, fields::in(0.5, 20));
     ar("low_angle_term", low_angle_term);
     ar("low_stride_px", low_stride_px, fields::in(1, 8));
+    ar("pixel_depth_power", pixel_depth_power, fields::in(-4, 4));
+    ar("pixel_depth_ref_m", pixel_depth_ref_m, fields::in(0.1, 10));
+    ar("pixel_depth_min_m", pixel_depth_min_m, fields::in(0, 10));
+    ar("pixel_depth_max_m", pixel_depth_max_m, fields::in(0.01, 10));  // and > pixel_depth_min_m
   }
 };
 
