@@ -63,7 +63,7 @@ def main(out_dir):
     # The pixel-scale noise against depth (issue 20): what a quadratic leaves.
     if any("sigma_quad_by_depth" in s for _, s in series):
         sigma("sigma_quad_by_depth", "depth [m] (bin median)", "sigma_quad_depth.png",
-              "What a quadratic leaves against depth (incidence < 30 deg)",
+              "What a quadratic leaves, by depth (< 30 deg)",
               "quadratic-fit sigma [mm]")
 
     # The structure (issue 20): what a quadratic leaves by incidence, and how far the
