@@ -347,7 +347,7 @@ Runner add_calibrate_noise(CLI::App& app) {
       ->capture_default_str();
   CLI::Option* sweeps =
       app.add_option("--sweeps", o->sweeps,
-                     "two-scale: pattern-search sweeps (each re-renders the frames 18 times)")
+                     "two-scale: pattern-search sweeps (each re-renders the frames up to 20 times)")
           ->check(CLI::Range(0, 1000))
           ->capture_default_str();
   CLI::Option* draws = add_draws_option(app, o->draws, "two-scale: every candidate of the search");
