@@ -337,24 +337,15 @@ TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
   }
 }
 
-// The pixel-scale field's depth power (issue 20): on a plate at depth z the pixel-scale
-// field carries (1 - s) (a r^p)^2 of the variance, r = z' / ref with z' held to the
-// measured range, and the low field s a^2, so sigma^2 = ((1 - s) r^(2p) + s) a^2 and the
-// lag-L correlation mixes the two fields' by those shares. At the reference depth nothing
+// The pixel-scale field's depth power (issue 20), on the two-term field above without the
+// angle term: on a plate at depth z the pixel-scale field carries (1 - s) (a r^p)^2 of the
+// variance, r = z' / ref with z' held to the range, and the low field s a^2, so sigma^2 =
+// ((1 - s) r^(2p) + s) a^2 and the lag-L correlation mixes the two fields' by those shares. At the reference depth nothing
 // changes; beyond the range the factor is the one at its end, not the power law's.
 TEST(SensorNoise, PixelDepthPowerScalesThePixelScaleFieldOnly) {
-  constexpr double kSigma = 0.002;  // a [m]
-  constexpr double kShare = 0.8, kPixelPx = 1.0, kLowPx = 6.0, kPower = 2.0, kRef = 0.6;
+  constexpr double kLowPx = 6.0, kPower = 2.0, kRef = 0.6;
   constexpr double kRhoTol = 0.04;  // as the test above
-  NoiseParams n = NoiseParams::off();
-  n.axial.enabled = true;
-  n.axial.a = kSigma;
-  n.axial.c = 0;
-  n.axial.k_theta = 0;
-  n.axial.correlation_px = kPixelPx;
-  n.axial.low_share = kShare;
-  n.axial.low_rows_px = kLowPx;
-  n.axial.low_cols_px = kLowPx;
+  NoiseParams n = two_term_noise(kLowPx, kLowPx);  // pixel-scale widths 1 x 2 px
   n.axial.low_angle_term = false;
   n.axial.pixel_depth_power = kPower;
   n.axial.pixel_depth_ref_m = kRef;
@@ -366,20 +357,21 @@ TEST(SensorNoise, PixelDepthPowerScalesThePixelScaleFieldOnly) {
   for (const auto& [z, held] : {std::pair{0.6, 0.6}, std::pair{0.75, 0.75}, std::pair{1.0, 0.8}}) {
     SCOPED_TRACE("z " + std::to_string(z));
     const double r2p = std::pow(held / kRef, 2 * kPower);
-    const double pixel = (1 - kShare) * r2p, total = pixel + kShare;  // of a^2
+    const double pixel = (1 - kTwoTermShare) * r2p, total = pixel + kTwoTermShare;  // of a^2
+    const double sigma = std::sqrt(total) * kTwoTermSigma;
     const PlateField f = plate_field(n, kLags, kBorder, 0, 2, z);
-    EXPECT_NEAR(f.sigma, std::sqrt(total) * kSigma, kStageSigmaRelTol * std::sqrt(total) * kSigma);
+    EXPECT_NEAR(f.sigma, sigma, kStageSigmaRelTol * sigma);
     for (int l = 1; l <= kLags; ++l) {
-      const double model = (pixel * rho(l, kPixelPx) + kShare * rho(l, kLowPx)) / total;
-      EXPECT_NEAR(f.rows[l], model, kRhoTol) << "lag " << l;
-      EXPECT_NEAR(f.cols[l], model, kRhoTol) << "lag " << l;
+      const double low = kTwoTermShare * rho(l, kLowPx);
+      EXPECT_NEAR(f.rows[l], (pixel * rho(l, 1.0) + low) / total, kRhoTol) << "lag " << l;
+      EXPECT_NEAR(f.cols[l], (pixel * rho(l, 2.0) + low) / total, kRhoTol) << "lag " << l;
     }
   }
-  // The unheld power law would read 1.53 a at 1.0 m, where the held factor gives 1.20 a:
+  // The unheld power law would read 1.92 a at 1.0 m, where the held factor gives 1.37 a:
   // more than the tolerance apart, so the check above tells them apart.
-  ASSERT_GT(std::sqrt((1 - kShare) * std::pow(1.0 / kRef, 2 * kPower) + kShare) -
-                std::sqrt((1 - kShare) * std::pow(0.8 / kRef, 2 * kPower) + kShare),
-            2 * kStageSigmaRelTol * 1.2);
+  ASSERT_GT(std::sqrt((1 - kTwoTermShare) * std::pow(1.0 / kRef, 2 * kPower) + kTwoTermShare) -
+                std::sqrt((1 - kTwoTermShare) * std::pow(0.8 / kRef, 2 * kPower) + kTwoTermShare),
+            2 * kStageSigmaRelTol * 1.4);
   // The power needs the two fields apart, and the range must be one.
   NoiseParams bad = n;
   bad.axial.low_angle_term = true;
