@@ -1019,6 +1019,7 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
   ax.correlation_px = 0;
   ax.correlation_cols_px = 0;
   ax.low_share = 0;
+  ax.pixel_depth_power = 0;  // nor a depth power of its own (a start such as sr300's has one)
   ax.kernel = AxialKernel::gaussian;  // the one-field and two-term models' fields
   double variance_factor = window_response(0, window).variance_factor;
   const double rho1 = s.correlation[0];

@@ -97,10 +97,6 @@ void NoiseParams::validate() const {
         fields::fail("noise", key, w,
                      "must be >= 2 x low_stride_px (" + std::to_string(axial.low_stride_px) +
                          "): a coarser grid shows in the field");
-  if (axial.pixel_depth_power != 0 && !(axial.low_share > 0 && !axial.low_angle_term))
-    fields::fail("noise", "axial.pixel_depth_power", axial.pixel_depth_power,
-                 "needs low_share > 0 and low_angle_term false (it scales the pixel-scale "
-                 "field apart from the low one)");
   if (!(axial.pixel_depth_max_m > axial.pixel_depth_min_m))
     fields::fail("noise", "axial.pixel_depth_max_m", axial.pixel_depth_max_m,
                  "must be > pixel_depth_min_m (" + format_shortest(axial.pixel_depth_min_m) + ")");

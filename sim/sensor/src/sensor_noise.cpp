@@ -24,9 +24,10 @@ using detail::pixel_key;
 using detail::inverse_normal_cdf;
 using detail::uniform;
 
-// The pixel-scale depth factor's table step [m]: linear between its entries, within 1e-6
-// (relative) of the power law for the preset's power over 0.5-0.9 m.
-constexpr double kPixelFactorStep_m = 0.0005, kPixelFactorPerM = 1 / kPixelFactorStep_m;
+// The pixel-scale depth factor's largest table step [m]: linear between its entries,
+// within 1e-6 (relative) of the power law for the preset's power over 0.5-0.9 m, about
+// 1e-5 for a power of 4 from 0.2 m.
+constexpr double kPixelFactorStep_m = 0.0005;
 
 // The taps f(i), i = -R..R, scaled to sum k^2 = 1: one 1-D pass keeps unit white noise at
 // unit variance (at the image border the kernel is cut and the variance a little lower).
@@ -113,14 +114,17 @@ SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
     low_rows_kernel_ = unit_variance_gaussian(ax.low_rows_px / ax.low_stride_px);
     low_cols_kernel_ = unit_variance_gaussian(ax.low_cols_px / ax.low_stride_px);
   }
-  if (ax.pixel_depth_power != 0) {
+  if (ax.pixel_depth_power != 0 && ax.low_share > 0 && !ax.low_angle_term) {
     pixel_factor_lo_m_ = ax.pixel_depth_min_m;
     pixel_factor_hi_m_ = ax.pixel_depth_max_m;
-    const auto steps = static_cast<std::size_t>(
-        std::ceil((pixel_factor_hi_m_ - pixel_factor_lo_m_) / kPixelFactorStep_m));
-    pixel_factor_.resize(steps + 2);  // one past the range's end: i + 1 is always there
+    // Steps of at most kPixelFactorStep_m that end exactly at the range's end.
+    const double span = pixel_factor_hi_m_ - pixel_factor_lo_m_;
+    const auto steps = static_cast<std::size_t>(std::ceil(span / kPixelFactorStep_m));
+    pixel_factor_per_m_ = static_cast<double>(steps) / span;
+    pixel_factor_.resize(steps + 2);  // one past the end: i + 1 is there at z == max too
     for (std::size_t i = 0; i < pixel_factor_.size(); ++i)
-      pixel_factor_[i] = ax.pixel_depth_factor(pixel_factor_lo_m_ + static_cast<double>(i) * kPixelFactorStep_m);
+      pixel_factor_[i] = ax.pixel_depth_factor(
+          std::min(pixel_factor_hi_m_, pixel_factor_lo_m_ + static_cast<double>(i) / pixel_factor_per_m_));
   }
   // edges.drop_steps in the PNG's units: the least d with d unit > jump, found with the
   // same double product as the rule, so the two agree for every d.
@@ -431,7 +435,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
         double pixel_base = base;
         if (!pixel_factor_.empty()) {
           const double t =
-              (std::clamp(z0, pixel_factor_lo_m_, pixel_factor_hi_m_) - pixel_factor_lo_m_) * kPixelFactorPerM;
+              (std::clamp(z0, pixel_factor_lo_m_, pixel_factor_hi_m_) - pixel_factor_lo_m_) * pixel_factor_per_m_;
           const auto i = static_cast<std::size_t>(t);
           const double f = t - static_cast<double>(i);
           pixel_base *= pixel_factor_[i] + f * (pixel_factor_[i + 1] - pixel_factor_[i]);

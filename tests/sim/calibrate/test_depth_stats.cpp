@@ -745,6 +745,10 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   EXPECT_GT(ax.low_share, 0.0);
   EXPECT_EQ(ax.kernel, AxialKernel::gaussian);
   one.params.validate();
+  // The one-field fit that starts the search has no depth power, whatever its start has.
+  const NoiseFit from_preset = fit_noise(t.stats, NoiseParams::sr300());
+  EXPECT_EQ(from_preset.params.axial.pixel_depth_power, 0.0);
+  from_preset.params.validate();
   // "... target mismatch X (start Y) ...": X < Y (the start is not the fit).
   const auto [cost, start] = noted_mismatch(one);
   EXPECT_LT(cost, start) << "one sweep of up to 20 renders found nothing better than the start";
@@ -1209,14 +1213,18 @@ TEST(DepthStats, CurvatureWithinTheWindowIsTakenUpByAQuadratic) {
 
 // Quadratic-fit sigma by depth (issue 20): two walls, at 0.65 m with 0.2 mm of white noise
 // and at 0.75 m with 0.6 mm, each read in its own depth bin, from the windows sigma_by_depth
-// reads; by incidence they pool.
+// reads; by incidence they pool. Both curve within every window (a parabola 2 mm deep
+// across each 15 px window's columns), which a quadratic takes up and a plane does not, so
+// the bins read the quadratic's sigma, not the plane's.
 TEST(DepthStats, QuadraticSigmaByDepthReadsEachDepthsNoise) {
   const std::vector<double> near_noise = white_field(11, 0.0002, 300 * 225);
   const std::vector<double> far_noise = white_field(12, 0.0006, 300 * 225);
   io::Intrinsics K;
+  const auto curve = [](int u) { return 4e-5 * (u % 15 - 7) * (u % 15 - 7); };
   const io::DepthImage near_wall =
-      wall(K, [&](int u, int v) { return 0.05 + near_noise[v * 300 + u]; });
-  const io::DepthImage far_wall = wall(K, [&](int u, int v) { return 0.15 + far_noise[v * 300 + u]; });
+      wall(K, [&](int u, int v) { return 0.05 + curve(u) + near_noise[v * 300 + u]; });
+  const io::DepthImage far_wall =
+      wall(K, [&](int u, int v) { return 0.15 + curve(u) + far_noise[v * 300 + u]; });
   const DepthStats s = depth_stats({near_wall, far_wall}, K);
   ASSERT_EQ(s.sigma_quad_by_depth.size(), s.sigma_by_depth.size());
   for (std::size_t k = 0; k < s.sigma_by_depth.size(); ++k)
@@ -1232,6 +1240,7 @@ TEST(DepthStats, QuadraticSigmaByDepthReadsEachDepthsNoise) {
   EXPECT_NEAR(near.sigma, 0.0002, 0.1 * 0.0002);  // 0.1 mm quantization adds 3 um
   EXPECT_NEAR(far.sigma, 0.0006, 0.1 * 0.0006);
   EXPECT_NEAR(far.centre, 0.75, 0.005);
+  EXPECT_GT(s.sigma_by_depth[2].sigma, 2 * near.sigma);  // the plane's, 0.6-0.7 m: 0.65 mm
   int by_angle = 0;  // every window once, whatever its incidence
   for (const SigmaBin& b : s.sigma_quad_by_angle) by_angle += b.windows;
   EXPECT_EQ(by_angle, near.windows + far.windows);

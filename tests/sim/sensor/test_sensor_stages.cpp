@@ -340,8 +340,9 @@ TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
 // The pixel-scale field's depth power (issue 20), on the two-term field above without the
 // angle term: on a plate at depth z the pixel-scale field carries (1 - s) (a r^p)^2 of the
 // variance, r = z' / ref with z' held to the range, and the low field s a^2, so sigma^2 =
-// ((1 - s) r^(2p) + s) a^2 and the lag-L correlation mixes the two fields' by those shares. At the reference depth nothing
-// changes; beyond the range the factor is the one at its end, not the power law's.
+// ((1 - s) r^(2p) + s) a^2 and the lag-L correlation mixes the two fields' by those shares.
+// At the reference depth nothing changes; beyond the range, either side, the factor is the
+// one at its end, not the power law's.
 TEST(SensorNoise, PixelDepthPowerScalesThePixelScaleFieldOnly) {
   constexpr double kLowPx = 6.0, kPower = 2.0, kRef = 0.6;
   constexpr double kRhoTol = 0.04;  // as the test above
@@ -353,8 +354,10 @@ TEST(SensorNoise, PixelDepthPowerScalesThePixelScaleFieldOnly) {
   n.axial.pixel_depth_max_m = 0.8;
   const auto rho = [](int l, double w) { return std::exp(-l * l / (4 * w * w)); };
   constexpr int kLags = 4, kBorder = 20;
-  // z, and the depth the factor is read at: 1.0 m is past the range's end, 0.8 m.
-  for (const auto& [z, held] : {std::pair{0.6, 0.6}, std::pair{0.75, 0.75}, std::pair{1.0, 0.8}}) {
+  // z, and the depth the factor is read at: 1.0 m is past the range's end, 0.8 m, and
+  // 0.25 m before its start, 0.3 m.
+  for (const auto& [z, held] : {std::pair{0.6, 0.6}, std::pair{0.75, 0.75}, std::pair{1.0, 0.8},
+                                std::pair{0.25, 0.3}}) {
     SCOPED_TRACE("z " + std::to_string(z));
     const double r2p = std::pow(held / kRef, 2 * kPower);
     const double pixel = (1 - kTwoTermShare) * r2p, total = pixel + kTwoTermShare;  // of a^2
@@ -372,15 +375,33 @@ TEST(SensorNoise, PixelDepthPowerScalesThePixelScaleFieldOnly) {
   ASSERT_GT(std::sqrt((1 - kTwoTermShare) * std::pow(1.0 / kRef, 2 * kPower) + kTwoTermShare) -
                 std::sqrt((1 - kTwoTermShare) * std::pow(0.8 / kRef, 2 * kPower) + kTwoTermShare),
             2 * kStageSigmaRelTol * 1.4);
-  // The power needs the two fields apart, and the range must be one.
+  // The same draws with and without the power, the low field nearly off: each pixel's
+  // offset is scaled by the factor itself, r^p (1.56 at 0.75 m; its square would be 2.44).
+  NoiseParams pixel_only = n;
+  pixel_only.axial.low_share = 0.001;
+  NoiseParams no_power = pixel_only;
+  no_power.axial.pixel_depth_power = 0;
+  constexpr double kZ = 0.75;
+  const std::vector<float> with = plate_field(pixel_only, 0, kBorder, 0, 2, kZ).first;
+  const std::vector<float> without = plate_field(no_power, 0, kBorder, 0, 2, kZ).first;
+  double xy = 0, xx = 0;
+  for (std::size_t i = 0; i < with.size(); ++i) {
+    xy += (with[i] - kZ) * (without[i] - kZ);
+    xx += (without[i] - kZ) * (without[i] - kZ);
+  }
+  EXPECT_NEAR(xy / xx, std::pow(kZ / kRef, kPower), 0.01);  // the low field's 0.1% off
+  // Without the two fields apart the power does nothing, as the low field's widths without
+  // a low field; the range must be one.
+  NoiseParams joint = n;
+  joint.axial.low_angle_term = true;
+  NoiseParams joint_no_power = joint;
+  joint_no_power.axial.pixel_depth_power = 0;
+  EXPECT_EQ(plate_field(joint, 0, kBorder, 0, 2, kZ).first,
+            plate_field(joint_no_power, 0, kBorder, 0, 2, kZ).first);
   NoiseParams bad = n;
-  bad.axial.low_angle_term = true;
-  std::string e = test::error_of<std::invalid_argument>([&] { (void)SensorNoise(bad, CameraParams{}); });
-  EXPECT_NE(e.find("noise.axial.pixel_depth_power = 2: needs low_share > 0 and low_angle_term false"),
-            std::string::npos) << e;
-  bad = n;
   bad.axial.pixel_depth_max_m = 0.3;
-  e = test::error_of<std::invalid_argument>([&] { (void)SensorNoise(bad, CameraParams{}); });
+  const std::string e =
+      test::error_of<std::invalid_argument>([&] { (void)SensorNoise(bad, CameraParams{}); });
   EXPECT_NE(e.find("noise.axial.pixel_depth_max_m = 0.3: must be > pixel_depth_min_m (0.3)"),
             std::string::npos) << e;
 }

@@ -230,9 +230,11 @@ struct WindowResponse {
 
 /// What a plane fit in windows of `window` px reads of `axial`'s noise at depth z [m] and
 /// incidence theta [rad]: sigma_z times the square root of window_response's variance
-/// factor; with low_angle_term false, sqrt((a + c z^2)^2 F + t^2 F_pixel), the angle term
-/// t read as the pixel-scale field's alone (F the two fields' factor, F_pixel the pixel
-/// field's). The low field's grid (low_stride_px) is read as the Gaussian it samples [m].
+/// factor; with low_angle_term false, sqrt((a + c z^2)^2 (F + (1 - s) F_pixel (r^2 - 1)) +
+/// t^2 F_pixel), the angle term t read as the pixel-scale field's alone (F the two fields'
+/// factor at their shares, F_pixel the pixel field's, s low_share, r
+/// AxialNoise::pixel_depth_factor(z)). The low field's grid (low_stride_px) is read as the
+/// Gaussian it samples [m].
 class AxialReading {
  public:
   explicit AxialReading(const AxialNoise& axial, int window = 15);

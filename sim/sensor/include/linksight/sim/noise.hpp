@@ -85,11 +85,12 @@ struct AxialNoise {
   /// pixel-scale noise by depth"). The pixel's sigma is then sqrt((1 - low_share) ((a +
   /// c z^2) r^p)^2 + t^2) in the pixel-scale field and sqrt(low_share) (a + c z^2) in the
   /// low one. The range is where the power was measured: a power law is not extrapolated.
-  /// 0: as before the term existed.
+  /// Without the two fields apart (low_share 0 or low_angle_term true) it does nothing, as
+  /// the low field's widths do without a low field. 0: as before the term existed.
   double pixel_depth_power = 0;
-  double pixel_depth_ref_m = 0.65;  ///< [m] the depth at which the power changes nothing
-  double pixel_depth_min_m = 0;     ///< [m] nearer, the factor is the one at this depth
-  double pixel_depth_max_m = 10;    ///< [m] farther, the factor is the one at this depth
+  double pixel_depth_ref_m = 0.65;  ///< [m] the depth the power is relative to
+  double pixel_depth_min_m = 0.1;   ///< [m] nearer, the factor is the one at this depth
+  double pixel_depth_max_m = 10;    ///< [m] farther, the one at this depth; > pixel_depth_min_m
   /// r^pixel_depth_power (above): what the pixel-scale field's share of a + c z^2 is scaled
   /// by at depth z [m]; 1 when the power is 0.
   [[nodiscard]] double pixel_depth_factor(double z) const {
@@ -136,7 +137,7 @@ struct AxialNoise {
     ar("low_stride_px", low_stride_px, fields::in(1, 8));
     ar("pixel_depth_power", pixel_depth_power, fields::in(-4, 4));
     ar("pixel_depth_ref_m", pixel_depth_ref_m, fields::in(0.1, 10));
-    ar("pixel_depth_min_m", pixel_depth_min_m, fields::in(0, 10));
+    ar("pixel_depth_min_m", pixel_depth_min_m, fields::in(0.01, 10));  // > 0: a power < 0 stays finite
     ar("pixel_depth_max_m", pixel_depth_max_m, fields::in(0.01, 10));  // and > pixel_depth_min_m
   }
 };

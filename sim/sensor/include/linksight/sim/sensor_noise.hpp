@@ -60,11 +60,11 @@ class SensorNoise {
   std::vector<float> rows_kernel_, cols_kernel_, low_rows_kernel_, low_cols_kernel_;
   std::vector<float> white_, blurred_, field_, low_field_;  // their per-frame buffers
   std::vector<float> along_u_;  // the low field's grid rows, interpolated along u
-  // AxialNoise::pixel_depth_factor every 0.5 mm over its range, interpolated linearly
-  // (within 1e-6 of it; std::pow at every pixel cost a quarter of the frame); empty when
-  // the power is 0.
+  // AxialNoise::pixel_depth_factor every 0.5 mm or less over its range, interpolated
+  // linearly (within 1e-6 of it for the preset; std::pow at every pixel cost a quarter of
+  // the frame); empty when the power does nothing (0, or the two fields not apart).
   std::vector<double> pixel_factor_;
-  double pixel_factor_lo_m_ = 0, pixel_factor_hi_m_ = 0;
+  double pixel_factor_lo_m_ = 0, pixel_factor_hi_m_ = 0, pixel_factor_per_m_ = 0;
   std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
   std::vector<std::uint16_t> steps_;          // the reported depth, for edges.drop_steps
   std::vector<std::uint16_t> none_;           // a row of pixels that report nothing
