@@ -97,6 +97,10 @@ void NoiseParams::validate() const {
         fields::fail("noise", key, w,
                      "must be >= 2 x low_stride_px (" + std::to_string(axial.low_stride_px) +
                          "): a coarser grid shows in the field");
+  if (axial.pixel_depth_power < 0 && !(axial.pixel_depth_min_m > 0))
+    fields::fail("noise", "axial.pixel_depth_min_m", axial.pixel_depth_min_m,
+                 "must be > 0 with a negative pixel_depth_power (" +
+                     format_shortest(axial.pixel_depth_power) + "): the factor would be infinite at 0");
   if (!(axial.pixel_depth_max_m > axial.pixel_depth_min_m))
     fields::fail("noise", "axial.pixel_depth_max_m", axial.pixel_depth_max_m,
                  "must be > pixel_depth_min_m (" + format_shortest(axial.pixel_depth_min_m) + ")");

@@ -118,13 +118,14 @@ SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
     pixel_factor_lo_m_ = ax.pixel_depth_min_m;
     pixel_factor_hi_m_ = ax.pixel_depth_max_m;
     // Steps of at most kPixelFactorStep_m that end exactly at the range's end.
+    // (For the preset's 0.4 m the step is 0.5 mm to the bit, as the table was first made.)
     const double span = pixel_factor_hi_m_ - pixel_factor_lo_m_;
     const auto steps = static_cast<std::size_t>(std::ceil(span / kPixelFactorStep_m));
-    pixel_factor_per_m_ = static_cast<double>(steps) / span;
+    const double step = span / static_cast<double>(steps);
+    pixel_factor_per_m_ = 1 / step;
     pixel_factor_.resize(steps + 2);  // one past the end: i + 1 is there at z == max too
     for (std::size_t i = 0; i < pixel_factor_.size(); ++i)
-      pixel_factor_[i] = ax.pixel_depth_factor(
-          std::min(pixel_factor_hi_m_, pixel_factor_lo_m_ + static_cast<double>(i) / pixel_factor_per_m_));
+      pixel_factor_[i] = ax.pixel_depth_factor(pixel_factor_lo_m_ + static_cast<double>(i) * step);
   }
   // edges.drop_steps in the PNG's units: the least d with d unit > jump, found with the
   // same double product as the rule, so the two agree for every d.

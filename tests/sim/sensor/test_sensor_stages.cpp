@@ -391,7 +391,7 @@ TEST(SensorNoise, PixelDepthPowerScalesThePixelScaleFieldOnly) {
   }
   EXPECT_NEAR(xy / xx, std::pow(kZ / kRef, kPower), 0.01);  // the low field's 0.1% off
   // Without the two fields apart the power does nothing, as the low field's widths without
-  // a low field; the range must be one.
+  // a low field; the range must be one, and start past 0 for a negative power.
   NoiseParams joint = n;
   joint.axial.low_angle_term = true;
   NoiseParams joint_no_power = joint;
@@ -404,6 +404,13 @@ TEST(SensorNoise, PixelDepthPowerScalesThePixelScaleFieldOnly) {
       test::error_of<std::invalid_argument>([&] { (void)SensorNoise(bad, CameraParams{}); });
   EXPECT_NE(e.find("noise.axial.pixel_depth_max_m = 0.3: must be > pixel_depth_min_m (0.3)"),
             std::string::npos) << e;
+  bad = n;
+  bad.axial.pixel_depth_power = -1;
+  bad.axial.pixel_depth_min_m = 0;
+  const std::string e0 =
+      test::error_of<std::invalid_argument>([&] { (void)SensorNoise(bad, CameraParams{}); });
+  EXPECT_NE(e0.find("noise.axial.pixel_depth_min_m = 0: must be > 0 with a negative pixel_depth_power (-1)"),
+            std::string::npos) << e0;
 }
 
 // The new settings at their defaults are the one-field model, bit for bit (old scenes keep

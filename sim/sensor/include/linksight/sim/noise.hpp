@@ -89,7 +89,7 @@ struct AxialNoise {
   /// the low field's widths do without a low field. 0: as before the term existed.
   double pixel_depth_power = 0;
   double pixel_depth_ref_m = 0.65;  ///< [m] the depth the power is relative to
-  double pixel_depth_min_m = 0.1;   ///< [m] nearer, the factor is the one at this depth
+  double pixel_depth_min_m = 0;     ///< [m] nearer, the factor is the one at this depth (> 0 for a power < 0)
   double pixel_depth_max_m = 10;    ///< [m] farther, the one at this depth; > pixel_depth_min_m
   /// r^pixel_depth_power (above): what the pixel-scale field's share of a + c z^2 is scaled
   /// by at depth z [m]; 1 when the power is 0.
@@ -137,7 +137,7 @@ struct AxialNoise {
     ar("low_stride_px", low_stride_px, fields::in(1, 8));
     ar("pixel_depth_power", pixel_depth_power, fields::in(-4, 4));
     ar("pixel_depth_ref_m", pixel_depth_ref_m, fields::in(0.1, 10));
-    ar("pixel_depth_min_m", pixel_depth_min_m, fields::in(0.01, 10));  // > 0: a power < 0 stays finite
+    ar("pixel_depth_min_m", pixel_depth_min_m, fields::in(0, 10));  // and > 0 for a power < 0
     ar("pixel_depth_max_m", pixel_depth_max_m, fields::in(0.01, 10));  // and > pixel_depth_min_m
   }
 };
