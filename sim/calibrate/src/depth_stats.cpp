@@ -1074,7 +1074,7 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
     const std::vector<SigmaBin>& bins = by_depth ? s.sigma_by_depth : s.sigma_by_angle;
     for (std::size_t k = 0; k < bins.size(); ++k) {
       const SigmaBin& b = bins[k];
-      if (b.windows < 10) continue;
+      if (b.windows < kMinBinWindows) continue;
       Bin bin;
       for (const DepthStats::Window& w : s.samples) {
         if (!in_sigma_bin(w, b, by_depth, s.depth_bin_max_angle)) continue;
@@ -1083,7 +1083,7 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
       double m = b.sigma;  // the median of these windows' sigma
       if (shape != nullptr) {
         const std::vector<SigmaBin>& q = by_depth ? shape->sigma_by_depth : shape->sigma_by_angle;
-        if (k < q.size() && q[k].windows >= 10 && std::abs(q[k].lo - b.lo) < 1e-9) {
+        if (k < q.size() && q[k].windows >= kMinBinWindows && std::abs(q[k].lo - b.lo) < 1e-9) {
           // Noise and shape add in quadrature; a bin the shape explains keeps a tenth.
           m = std::sqrt(std::max(m * m - q[k].sigma * q[k].sigma, 0.01 * m * m));
           ++corrected;

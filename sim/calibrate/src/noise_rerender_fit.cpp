@@ -39,11 +39,11 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
   // A bin the camera fills and the simulation leaves (nearly) empty counts as a simulation
   // that reads nothing there, as far off as can be: a model must not lower its cost by
   // losing the windows that would measure it (a steeper incidence cut-off can).
-  // kMinSimWindows, not 10: the simulation's count moves with its draws.
+  // kMinSimWindows, not kMinBinWindows: the simulation's count moves with its draws.
   const auto bins = [&](const std::vector<SigmaBin>& r, const std::vector<SigmaBin>& s,
                         const std::string& what, double unit) {
     for (std::size_t b = 0; b < r.size(); ++b) {
-      if (r[b].windows < 10) continue;
+      if (r[b].windows < kMinBinWindows) continue;
       const bool seen = b < s.size() && s[b].windows >= kMinSimWindows;
       ratio(what + " " + std::to_string(static_cast<int>(std::lround(r[b].lo * unit))) + "-" +
                 std::to_string(static_cast<int>(std::lround(r[b].hi * unit))),
@@ -175,7 +175,7 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
   // reads), and held there beyond.
   bool measured = false;
   for (const SigmaBin& b : stats.sigma_quad_by_depth)
-    if (b.windows >= 10) {
+    if (b.windows >= kMinBinWindows) {
       AxialNoise& ax = fit.params.axial;
       if (!measured) ax.pixel_depth_min_m = b.lo;
       ax.pixel_depth_max_m = b.hi;

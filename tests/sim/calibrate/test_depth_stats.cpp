@@ -286,7 +286,7 @@ void expect_fidelity(const DepthStats& r, const DepthStats& s) {
   for (std::size_t b = 0; b < r.sigma_by_depth.size(); ++b) {
     const SigmaBin& rb = r.sigma_by_depth[b];
     const SigmaBin& sb = s.sigma_by_depth[b];
-    if (rb.windows < 10 || sb.windows < 10) continue;
+    if (rb.windows < kMinBinWindows || sb.windows < kMinBinWindows) continue;
     ++bins;
     SCOPED_TRACE("depth bin " + std::to_string(rb.lo) + "-" + std::to_string(rb.hi));
     EXPECT_NEAR(sb.sigma / rb.sigma, 1.0, kFidelitySigmaTol) << rb.sigma << " real, " << sb.sigma << " sim";
@@ -379,7 +379,7 @@ int expect_sigma_bins(const std::vector<SigmaBin>& fit, const std::vector<SigmaB
                       const std::vector<SigmaBin>& sim, const std::string& what) {
   int bins = 0;
   for (std::size_t b = 0; b < real.size() && b < sim.size() && b < fit.size(); ++b) {
-    if (fit[b].windows < 10 || real[b].windows < 10) continue;
+    if (fit[b].windows < kMinBinWindows || real[b].windows < kMinBinWindows) continue;
     // A bin the simulation leaves (nearly) empty is a failure, not a bin skipped; from
     // kMinSimWindows its median is compared (the count itself moves with the draws).
     EXPECT_GE(sim[b].windows, kMinSimWindows) << what << " " << real[b].lo << "-" << real[b].hi

@@ -315,9 +315,12 @@ struct TargetMismatch {
   std::vector<std::string> outside;  ///< "name sim/real" of those with e > 1
 };
 inline constexpr double kSmallCorrelation = 0.2, kSmallCorrelationTol = 0.05;
-/// A sigma bin counts where the camera's frames hold 10 windows; the simulation's reading
-/// is its median from this many, and under it the bin counts as read 0 (a model must not
-/// lower its cost by losing the windows that would measure it).
+/// A sigma bin counts (in the fits, the mismatch, the two-scale fit's depth range and the
+/// held-out checks) where the camera's frames hold this many windows.
+inline constexpr int kMinBinWindows = 10;
+/// The simulation's reading of a bin that counts is its median from this many windows, and
+/// under it the bin counts as read 0 (a model must not lower its cost by losing the
+/// windows that would measure it).
 inline constexpr int kMinSimWindows = 5;
 [[nodiscard]] TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim);
 
