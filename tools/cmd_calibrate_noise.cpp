@@ -246,14 +246,14 @@ int run_calibrate(const CalibrateOptions& o) {
   if (o.lateral_given && structure != sim::NoiseStructure::two_scale)
     throw io::InputError("--lateral-sigma-px: only the two-scale structure casts the frames "
                          "(--structure " + o.structure + ")");
-  if (o.lateral_given) {  // the model's own range (LateralNoise), before any frame is read
-    sim::NoiseParams jitter;
-    jitter.lateral.sigma_px = o.lateral_sigma_px;
-    try {
-      jitter.validate();
-    } catch (const std::invalid_argument& e) {
-      throw io::InputError(std::string("--lateral-sigma-px: ") + e.what());
-    }
+  sim::RerenderFitParams rerender;
+  rerender.sweeps = o.sweeps;
+  rerender.draws = o.draws;
+  if (o.lateral_given) rerender.lateral_sigma_px = o.lateral_sigma_px;
+  try {  // the search's own checks (the jitter's range is LateralNoise's), before any frame is read
+    rerender.validate();
+  } catch (const std::invalid_argument& e) {
+    throw io::InputError(std::string("calibrate-noise: ") + e.what());
   }
   const io::Intrinsics K = io::read_intrinsics(o.intrinsics);
   const std::vector<io::DepthImage> frames =
@@ -280,13 +280,9 @@ int run_calibrate(const CalibrateOptions& o) {
   const sim::DepthStats* shape_p = o.no_shape_correction ? nullptr : &shape;
   sim::NoiseFit fit;
   if (structure == sim::NoiseStructure::two_scale) {
-    sim::RerenderFitParams p;
-    p.sweeps = o.sweeps;
-    p.draws = o.draws;
-    if (o.lateral_given) p.lateral_sigma_px = o.lateral_sigma_px;
     try {
       fit = sim::fit_noise_rerendered(frames, K, stats, shape_p,
-                                      sim::NoiseParams::sr300_one_field(), p);
+                                      sim::NoiseParams::sr300_one_field(), rerender);
     } catch (const std::invalid_argument& e) {
       throw io::InputError(o.input + ": re-rendering its surfaces: " + e.what());
     }

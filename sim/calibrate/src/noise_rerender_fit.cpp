@@ -146,25 +146,31 @@ NoiseParams candidate(const NoiseParams& base, const Vec& x) {
 
 }  // namespace
 
-NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const io::Intrinsics& K,
-                              const DepthStats& stats, const DepthStats* shape,
-                              const NoiseParams& start, const RerenderFitParams& params) {
-  if (params.sweeps < 0)
-    throw std::invalid_argument("fit_noise_rerendered: sweeps = " + std::to_string(params.sweeps) +
-                                ": must be >= 0");
-  if (params.draws < 1)
-    throw std::invalid_argument("fit_noise_rerendered: draws = " + std::to_string(params.draws) +
-                                ": must be >= 1");
-  if (params.lateral_sigma_px) {
-    // The model's own range check (LateralNoise's fields), before any work, on a block
-    // that is valid but for it (so that the error is the jitter's, whatever `start` holds).
+void RerenderFitParams::validate() const {
+  if (sweeps < 0)
+    throw std::invalid_argument("sweeps = " + std::to_string(sweeps) + ": must be >= 0");
+  if (draws < 1)
+    throw std::invalid_argument("draws = " + std::to_string(draws) + ": must be >= 1");
+  if (lateral_sigma_px) {
+    // The model's own range (LateralNoise's fields), on a block that is valid but for it,
+    // so that the error is the jitter's.
     NoiseParams jitter;
-    jitter.lateral.sigma_px = *params.lateral_sigma_px;
+    jitter.lateral.sigma_px = *lateral_sigma_px;
     try {
       jitter.validate();
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("fit_noise_rerendered: lateral_sigma_px: ") + e.what());
+      throw std::invalid_argument(std::string("lateral_sigma_px: ") + e.what());
     }
+  }
+}
+
+NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const io::Intrinsics& K,
+                              const DepthStats& stats, const DepthStats* shape,
+                              const NoiseParams& start, const RerenderFitParams& params) {
+  try {
+    params.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("fit_noise_rerendered: ") + e.what());
   }
   NoiseFit fit = fit_noise(stats, start, shape, NoiseStructure::one_field);
   if (params.lateral_sigma_px) {  // switched on, so that the casts use what was given
@@ -183,13 +189,18 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
     }
   const NoiseParams base = fit.params;
   // The search fits max_incidence, which the one-field fit keeps.
-  char given[96];
-  std::snprintf(given, sizeof given, "lateral.sigma_px %g px as given, dropouts.min_signal kept",
-                base.lateral.sigma_px);
   for (std::string& note : fit.notes)
-    if (note.rfind("lateral.sigma_px and dropouts.max_incidence", 0) == 0)
-      note = params.lateral_sigma_px ? std::string(given) + ": not measured"
-                                     : "lateral.sigma_px and dropouts.min_signal kept: not measured";
+    if (note.rfind("lateral.sigma_px and dropouts.max_incidence", 0) == 0) {
+      if (params.lateral_sigma_px) {
+        char given[96];
+        std::snprintf(given, sizeof given,
+                      "lateral.sigma_px %g px as given, dropouts.min_signal kept: not measured",
+                      base.lateral.sigma_px);
+        note = given;
+      } else {
+        note = "lateral.sigma_px and dropouts.min_signal kept: not measured";
+      }
+    }
   // The casts depend on the lateral jitter and the projector only, which the search keeps.
   std::vector<Cast> casts;
   for (std::size_t f = 0; f < frames.size(); ++f) {

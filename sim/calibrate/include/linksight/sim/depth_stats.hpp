@@ -339,6 +339,9 @@ struct RerenderFitParams {
   /// 0.1 px and 0.045 mm with none, the camera 0.161 mm (docs/sensor.md, "The lateral
   /// jitter in the re-render").
   std::optional<double> lateral_sigma_px;
+  /// Throws std::invalid_argument naming the field: sweeps < 0, draws < 1, or a
+  /// lateral_sigma_px that LateralNoise refuses (through NoiseParams::validate).
+  void validate() const;
 };
 /// The `two_scale` structure fitted to a recording by simulation: `frames` (with their
 /// statistics `stats`, and `shape`, as for fit_noise) are first fitted with the one-field
@@ -351,8 +354,8 @@ struct RerenderFitParams {
 /// noise model to the casts and minimizes
 /// target_mismatch(stats, their statistics). Everything else is the one-field fit's. Deterministic: the same frames and params give the same fit for any thread
 /// count. The notes add the start, the final cost and what stays outside the band. Throws
-/// as fit_noise and depth_surface_mesh do, and std::invalid_argument for sweeps < 0,
-/// draws < 1 or a lateral_sigma_px the model refuses (NoiseParams::validate).
+/// as fit_noise and depth_surface_mesh do, and std::invalid_argument for `params` that
+/// RerenderFitParams::validate refuses.
 [[nodiscard]] NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames,
                                             const io::Intrinsics& intrinsics,
                                             const DepthStats& stats, const DepthStats* shape,
