@@ -377,7 +377,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
     for (int u = noisy.u0; u <= noisy.u1; ++u) {
       const std::size_t pix = static_cast<std::size_t>(v) * W + u;
       const double z0 = in.depth_m[pix];
-      if (z0 <= 0) continue;
+      if (!(z0 > 0)) continue;  // nothing hit (a NaN too: ANaNDepthIsNoHit)
       const std::uint64_t key = pixel_key(frame_seed, pix);
       if (noise.shadow.enabled && !in.lit[pix]) continue;
       if (noise.dropouts.enabled) {

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <string>
@@ -172,6 +173,28 @@ TEST(SensorNoise, ShadowRangeAndRegionRulesGiveNoDepth) {
   EXPECT_FLOAT_EQ(depth_m[0], static_cast<float>(depth.data[0] * unit));
   EXPECT_EQ(depth.data[100], 0);
   EXPECT_EQ(depth.data[static_cast<std::size_t>(plate.width)], 0);
+}
+
+TEST(SensorNoise, ANaNDepthIsNoHit) {
+  // A cast never gives one; an input that does must not put a NaN (or a cast of one to
+  // the depth unit, undefined) into the image. Every term on.
+  const CameraParams camera;
+  Plate plate(camera.intrinsics, 0.6);
+  const std::size_t centre = static_cast<std::size_t>(plate.height / 2) * plate.width + plate.width / 2;
+  plate.depth_m[centre] = std::numeric_limits<float>::quiet_NaN();
+  SensorNoise noise(NoiseParams::sr300(), camera);
+  io::DepthImage depth;
+  std::vector<float> depth_m;
+  noise.apply(plate.input(), 3, 0, 1, depth, depth_m);
+  EXPECT_EQ(depth.data[centre], 0);
+  EXPECT_EQ(depth_m[centre], 0.0F);
+  std::size_t not_finite = 0, hits = 0;
+  for (const float z : depth_m) {
+    not_finite += !std::isfinite(z);
+    hits += z > 0;
+  }
+  EXPECT_EQ(not_finite, 0U);
+  EXPECT_GT(hits, depth_m.size() / 2);
 }
 
 TEST(SensorNoise, SameDepthForAnyThreadCount) {
