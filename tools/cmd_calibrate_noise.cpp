@@ -253,7 +253,12 @@ int run_calibrate(const CalibrateOptions& o) {
   try {  // the search's own checks (the jitter's range is LateralNoise's), before any frame is read
     rerender.validate();
   } catch (const std::invalid_argument& e) {
-    throw io::InputError(std::string("calibrate-noise: ") + e.what());
+    // CLI11 holds --sweeps and --draws to their ranges, so what is left is the jitter's:
+    // named as the option the user typed.
+    std::string what = e.what();
+    const std::string field = "lateral_sigma_px: ";
+    if (what.rfind(field, 0) == 0) what = "--lateral-sigma-px: " + what.substr(field.size());
+    throw io::InputError(what);
   }
   const io::Intrinsics K = io::read_intrinsics(o.intrinsics);
   const std::vector<io::DepthImage> frames =

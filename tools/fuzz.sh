@@ -28,7 +28,7 @@ cmake -S "$root" -B "$build" -DCMAKE_CXX_COMPILER=clang++ \
 cmake --build "$build" -j "$(nproc)" --target "linksight_fuzz_$target"
 found="$build/tests/fuzz/found/$target"
 mkdir -p "$found"
-# Leak suppressions: Debian's assimp on malformed STL, PoCL's compiler (tests/fuzz/lsan.supp).
+# The one leak suppression: Debian's assimp on malformed STL (tests/fuzz/lsan.supp).
 export LSAN_OPTIONS=suppressions=$root/tests/fuzz/lsan.supp
 exec "$build/tests/fuzz/linksight_fuzz_$target" -max_total_time="$seconds" -rss_limit_mb=2048 \
   -timeout=20 -print_final_stats=1 "$@" "$found" "$root/tests/fuzz/corpus/$target"

@@ -1715,7 +1715,7 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
   // The jitter's range is the model's own (LateralNoise), named by its key.
   expect_refused("calibrate-noise --structure two-scale --lateral-sigma-px 11 --input " +
                      (real / "frames").string() + k,
-                 "calibrate-noise: lateral_sigma_px: noise.lateral.sigma_px = 11: must be in [0, 10]");
+                 "--lateral-sigma-px: noise.lateral.sigma_px = 11: must be in [0, 10]");
   // Intrinsics that do not match the frames.
   io::Intrinsics small;
   small.width = 32;

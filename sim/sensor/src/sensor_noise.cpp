@@ -401,7 +401,7 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
           const int uu = u + du[k], vv = v + dv[k];
           if (uu < 0 || uu >= W || vv < 0 || vv >= H) continue;
           const double zn = clean(uu, vv);
-          if (zn <= 0 || zn - z0 > e.jump) {
+          if (!(zn > 0) || zn - z0 > e.jump) {  // a NaN neighbour sees nothing too
             near_edge = true;
             z_far = std::max(z_far, zn);
           } else if (z0 - zn > e.jump) {
@@ -447,7 +447,9 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
         z += noise.axial.sigma(z0, in.incidence[pix]) *
              (correlated ? static_cast<double>(field_[pix]) : normal(key, kAxial));
       }
-      if (z < z_min || z > z_max) continue;
+      // Written so that a NaN (from a NaN incidence, say) fails it: the cast below is
+      // undefined for one.
+      if (!(z >= z_min && z <= z_max)) continue;
       const long q = static_cast<long>(z / unit + 0.5);  // z > 0 here
       if (q <= 0 || q > 65535) continue;
       depth.data[pix] = static_cast<std::uint16_t>(q);

@@ -20,7 +20,7 @@ inline constexpr int kEdgeReachPx = 2;
 /// width * height values; read only where depth_m > 0.
 struct NoiseInput {
   int width = 0, height = 0;
-  std::span<const float> depth_m;        ///< noise-free depth along the ray [m], 0 = nothing hit
+  std::span<const float> depth_m;        ///< noise-free depth along the ray [m], 0 (or NaN) = nothing hit
   std::span<const float> incidence;      ///< angle of the camera ray to the normal [rad]
   std::span<const float> cos_camera;     ///< its cosine, in [0, 1]
   std::span<const float> cos_projector;  ///< cos of the projector ray to the normal; <= 0: lit from behind
