@@ -184,9 +184,10 @@ TEST(SensorNoise, ANaNDepthIsNoHit) {
   const CameraParams camera;
   NoiseParams n = NoiseParams::sr300();
   n.edges.p_drop = 1;
+  const int W = camera.intrinsics.width, H = camera.intrinsics.height;
+  const std::size_t c = static_cast<std::size_t>(H / 2) * W + W / 2;  // the image's centre
   const auto image = [&](float centre_depth, float centre_incidence) {
     Plate plate(camera.intrinsics, 0.6);
-    const std::size_t c = static_cast<std::size_t>(plate.height / 2) * plate.width + plate.width / 2;
     plate.depth_m[c] = centre_depth;
     plate.incidence[c] = centre_incidence;
     SensorNoise noise(n, camera);
@@ -200,8 +201,6 @@ TEST(SensorNoise, ANaNDepthIsNoHit) {
   EXPECT_EQ(nan_depth.first.data, zero.first.data);
   EXPECT_EQ(nan_depth.second, zero.second);
   // The 0's neighbours are edge pixels, dropped with p_drop 1: the rule did fire.
-  const std::size_t c = static_cast<std::size_t>(camera.intrinsics.height / 2) * camera.intrinsics.width +
-                        camera.intrinsics.width / 2;
   EXPECT_EQ(zero.first.data[c + 1], 0);
   EXPECT_GT(zero.first.data[c + 3], 0);
   const auto nan_incidence = image(0.6F, nan);
