@@ -35,12 +35,18 @@ struct FidelityOptions {
   bool draws_given = false;
 };
 
-// A recording: DIR/depth (as `linksight render` writes), DIR/frames, or DIR itself; the
-// intrinsics beside the frames' folder unless given.
-// `half`: of its frames (take_half).
-sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, const char* role,
-                        const std::string& half, const sim::NoiseParams* rerender = nullptr,
-                        int draws = 1) {
+// A recording: DIR/depth (as `linksight render` writes), DIR/frames or DIR itself; the
+// intrinsics beside the frames' folder unless given. `half`: of its frames (take_half).
+// With `rerender`, `images` are its own surfaces through the simulated camera instead,
+// `draws` of each frame, draw-major: same geometry, so what differs is the sensor model.
+struct Measured {
+  io::Intrinsics K;
+  std::vector<io::DepthImage> images;
+  sim::DepthStats stats;
+};
+Measured measure(const std::string& dir, const std::string& intrinsics, const char* role,
+                 const std::string& half, const sim::NoiseParams* rerender = nullptr,
+                 int draws = 1) {
   try {
     fs::path frames = dir, k = intrinsics;
     std::error_code ec;
@@ -51,15 +57,15 @@ sim::DepthStats measure(const std::string& dir, const std::string& intrinsics, c
       }
     }
     if (k.empty()) k = fs::path(dir) / "intrinsics.json";
-    const io::Intrinsics K = io::read_intrinsics(k);
-    std::vector<io::DepthImage> images =
-        take_half(read_depth_frames(frames.string(), K, k.string(), "fidelity"), K, half, dir);
+    Measured m;
+    m.K = io::read_intrinsics(k);
+    m.images =
+        take_half(read_depth_frames(frames.string(), m.K, k.string(), "fidelity"), m.K, half, dir);
     try {
-      // The recording's own surfaces through the simulated camera: same geometry, so
-      // what differs is the sensor model.
       if (rerender != nullptr)
-        images = sim::rerender_surfaces(images, K, *rerender, sim::kCompareSeed, draws);
-      return sim::depth_stats(images, K);
+        m.images = sim::rerender_surfaces(m.images, m.K, *rerender, sim::kCompareSeed, draws);
+      m.stats = sim::depth_stats(m.images, m.K);
+      return m;
     } catch (const std::invalid_argument& e) {
       throw io::InputError(dir + ": " + e.what());
     }
@@ -152,12 +158,14 @@ int run_fidelity(const FidelityOptions& o) {
   if (o.draws_given && !o.rerender)
     throw io::InputError("--draws: only --rerender draws the noise (a --sim recording is read as it is)");
   io::StagedDir out(o.out, o.force);  // refuses an existing --out before any work
-  const sim::DepthStats real = measure(o.real, o.real_intrinsics, "real", o.half);
+  const Measured real_m = measure(o.real, o.real_intrinsics, "real", o.half);
   sim::NoiseParams noise = sim::NoiseParams::sr300();
   if (!o.noise_scene.empty()) noise = sim::load_scene(o.noise_scene).noise;
-  const sim::DepthStats simulated =
+  const Measured sim_m =
       o.rerender ? measure(o.real, o.real_intrinsics, "rerender", o.half, &noise, o.draws)
                  : measure(o.sim, o.sim_intrinsics, "sim", "all");
+  const sim::DepthStats& real = real_m.stats;
+  const sim::DepthStats& simulated = sim_m.stats;
   const std::vector<Row> table = rows(real, simulated);
   std::ostringstream text;
   text << std::left << std::setw(44) << "statistic" << std::right << std::setw(10) << "real"
@@ -170,12 +178,41 @@ int run_fidelity(const FidelityOptions& o) {
     j_rows.push_back({{"statistic", r.name}, {"real", json_number(r.real)},
                       {"sim", json_number(r.sim)}, {"ratio", json_number(ratio)}});
   }
+  // The issue's targets with their spread over the frames: only where each simulated
+  // image is a draw of one real frame (--rerender), so that a frame can leave both sides.
+  nlohmann::json j_targets = nullptr;
+  const std::size_t n_frames = real_m.images.size();
+  if (o.rerender && n_frames >= 3) {
+    std::vector<sim::TargetSpread> spread;
+    try {
+      spread = sim::target_jackknife(real_m.images, sim_m.images, real_m.K);
+    } catch (const std::invalid_argument& e) {
+      throw io::InputError("--real: " + o.real + ": " + e.what());
+    }
+    text << "\ntargets (issue 20): sim/real, or sim - real for a correlation the camera reads\n"
+         << "under " << std::defaultfloat << sim::kSmallCorrelation << "; se: leave-one-frame-out jackknife over "
+         << n_frames << " frames\n"
+         << std::left << std::setw(44) << "target" << std::right << std::setw(10) << "compared"
+         << std::setw(10) << "value" << std::setw(10) << "se" << std::setw(10) << "band" << "\n";
+    j_targets = nlohmann::json::array();
+    for (const sim::TargetSpread& t : spread) {
+      const char* kind = t.all.difference ? "sim-real" : "sim/real";
+      const bool outside = t.all.e > 1;
+      text << std::left << std::setw(44) << t.all.name << std::right << std::setw(10) << kind
+           << std::fixed << std::setprecision(3) << std::setw(10) << t.all.value() << std::setw(10)
+           << t.se << std::setw(10) << (outside ? "outside" : "inside") << "\n";
+      j_targets.push_back({{"target", t.all.name}, {"compared", kind},
+                           {"value", json_number(t.all.value())}, {"se", json_number(t.se)},
+                           {"outside", outside}});
+    }
+  }
   io::write_file_atomic(out.path() / "fidelity.txt", [&](std::ostream& f) { f << text.str(); });
   // draws: how many noise draws of each frame the re-rendered side pools (1 for a --sim
   // recording, read as it is).
   const nlohmann::json j = {{"real", o.real}, {"half", o.half},
                             {"sim", o.rerender ? "rerender" : o.sim},
                             {"draws", o.rerender ? o.draws : 1}, {"rows", j_rows},
+                            {"targets", j_targets},
                             {"series", {{"real", stats_series(real)}, {"sim", stats_series(simulated)}}}};
   io::write_file_atomic(out.path() / "fidelity.json", [&](std::ostream& f) { f << j.dump(1) << "\n"; });
   // Figures into the staging directory, so the output appears whole; a failed plot is a

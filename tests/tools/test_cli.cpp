@@ -1777,6 +1777,17 @@ background:
   const nlohmann::json j2 = nlohmann::json::parse(in2);
   EXPECT_EQ(j2["sim"], "rerender");
   EXPECT_EQ(j2["draws"], sim::RerenderFitParams{}.draws);
+  // The targets, each with its spread over the 11 frames (a --sim recording has
+  // other frames than the camera's: no targets).
+  EXPECT_TRUE(j["targets"].is_null());
+  ASSERT_EQ(j2["targets"].size(), 32u);
+  const nlohmann::json& holes = j2["targets"][31];
+  EXPECT_EQ(holes["target"], "holes per frame");
+  EXPECT_EQ(holes["compared"], "sim/real");
+  EXPECT_EQ(holes["value"], fidelity_row(j2, "holes per frame")["ratio"]);
+  EXPECT_GT(holes["se"].get<double>(), 0.0);
+  EXPECT_LT(holes["se"].get<double>(), 0.5);
+  EXPECT_NE(r.out.find("jackknife over 11 frames"), std::string::npos) << r.out;
   // One draw reads other figures than the default's pooled draws.
   const fs::path out3 = dir / "rerender1";
   r = run("fidelity --real " + real.string() + " --rerender --draws 1 --no-figures --out " +

@@ -24,9 +24,10 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
   TargetMismatch m;
   const double band = std::log(1.25);
   char line[160];
-  const auto add = [&](const std::string& name, double e, double r, double s) {
+  const auto add = [&](const std::string& name, double e, double r, double s, bool difference) {
     ++m.statistics;
     m.cost += e * e;
+    m.compared.push_back({name, r, s, difference, e});
     if (e > 1) {
       std::snprintf(line, sizeof line, "%s %.2f", name.c_str(), r != 0 ? s / r : 0.0);
       m.outside.emplace_back(line);
@@ -34,7 +35,7 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
   };
   const auto ratio = [&](const std::string& name, double r, double s) {
     if (!(r > 0)) return;
-    add(name, std::abs(std::log(std::max(s, 1e-9) / r)) / band, r, s);
+    add(name, std::abs(std::log(std::max(s, 1e-9) / r)) / band, r, s, false);
   };
   // A bin the camera fills and the simulation leaves (nearly) empty counts as a simulation
   // that reads nothing there, as far off as can be: a model must not lower its cost by
@@ -64,7 +65,7 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
       const std::string name = std::string("correlation ") + (rows ? "rows" : "columns") + " lag " +
                                std::to_string(l + 1);
       if (std::abs(r) < kSmallCorrelation)
-        add(name, std::abs(s - r) / kSmallCorrelationTol, r, s);
+        add(name, std::abs(s - r) / kSmallCorrelationTol, r, s, true);
       else
         ratio(name, r, s);
     }
@@ -84,6 +85,65 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
   ratio("flying rate beside bands", real.flying_band_rate, sim.flying_band_rate);
   ratio("holes per frame", real.holes_per_frame, sim.holes_per_frame);
   return m;
+}
+
+std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& real,
+                                           const std::vector<io::DepthImage>& sim,
+                                           const io::Intrinsics& intrinsics,
+                                           const DepthStatsParams& params) {
+  const std::size_t n = real.size();
+  if (n < 3)
+    throw std::invalid_argument("target_jackknife: " + std::to_string(n) +
+                                " frames; leaving one out needs at least 3");
+  if (sim.empty() || sim.size() % n != 0)
+    throw std::invalid_argument("target_jackknife: " + std::to_string(sim.size()) +
+                                " simulated images are not draws of " + std::to_string(n) +
+                                " frames");
+  const std::size_t draws = sim.size() / n;
+  std::vector<TargetSpread> out;
+  for (const TargetStatistic& t :
+       target_mismatch(depth_stats(real, intrinsics, params), depth_stats(sim, intrinsics, params))
+           .compared)
+    out.push_back({t, 0.0});
+  // Each statistic's values without frame i, by its name (a bin's windows can fall under
+  // kMinBinWindows without one frame, and then it is not compared at all).
+  std::vector<std::vector<double>> left(out.size());
+  std::vector<io::DepthImage> r, s;
+  for (std::size_t i = 0; i < n; ++i) {
+    r.clear();
+    s.clear();
+    for (std::size_t f = 0; f < n; ++f)
+      if (f != i) r.push_back(real[f]);
+    for (std::size_t d = 0; d < draws; ++d)
+      for (std::size_t f = 0; f < n; ++f)
+        if (f != i) s.push_back(sim[d * n + f]);
+    TargetMismatch m;
+    try {
+      m = target_mismatch(depth_stats(r, intrinsics, params), depth_stats(s, intrinsics, params));
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("target_jackknife: without frame " + std::to_string(i) + ": " +
+                                  e.what());
+    }
+    for (std::size_t k = 0; k < out.size(); ++k)
+      for (const TargetStatistic& t : m.compared)
+        if (t.name == out[k].all.name && t.difference == out[k].all.difference) {
+          left[k].push_back(t.value());
+          break;
+        }
+  }
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    if (left[k].size() != n) {
+      out[k].se = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    double mean = 0;
+    for (const double v : left[k]) mean += v;
+    mean /= static_cast<double>(n);
+    double ss = 0;
+    for (const double v : left[k]) ss += (v - mean) * (v - mean);
+    out[k].se = std::sqrt(static_cast<double>(n - 1) / static_cast<double>(n) * ss);
+  }
+  return out;
 }
 
 namespace {

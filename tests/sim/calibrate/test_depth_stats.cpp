@@ -693,6 +693,78 @@ TEST(DepthStats, TargetMismatchCountsTheIssuesStatistics) {
             std::string::npos);
 }
 
+// target_jackknife: paired over the frames, so a frame leaves with every draw of it; the
+// value on all frames is target_mismatch's; the spread is the jackknife's, checked on one
+// statistic against leave-one-out readings made here; too few frames or draws that do not
+// divide are refused.
+TEST(DepthStats, TargetJackknifeLeavesOneFrameOutOnBothSides) {
+  io::Intrinsics K;
+  std::vector<io::DepthImage> real = real_frames(K);
+  real.resize(4);
+  const auto finite_se = [](const std::vector<TargetSpread>& v) {
+    int n = 0;
+    for (const TargetSpread& t : v) n += std::isfinite(t.se) ? 1 : 0;
+    return n;
+  };
+  // The camera against itself, and against two draws of itself: nothing to spread. With
+  // the draws, a jackknife that left only one copy of a frame out would read the other
+  // copy as a frame of its own and spread. (Pooled over twice the pixels, a correlation's
+  // sums round differently: kSums.)
+  constexpr double kSums = 1e-12;
+  std::vector<io::DepthImage> twice = real;
+  twice.insert(twice.end(), real.begin(), real.end());
+  for (const auto* sim : {&real, &twice}) {
+    const std::vector<TargetSpread> self = target_jackknife(real, *sim, K);
+    ASSERT_EQ(self.size(), 32u);
+    EXPECT_GE(finite_se(self), 28);
+    for (const TargetSpread& t : self) {
+      EXPECT_NEAR(t.all.value(), t.all.difference ? 0.0 : 1.0, kSums) << t.all.name;
+      if (std::isfinite(t.se)) {
+        EXPECT_NEAR(t.se, 0.0, kSums) << t.all.name;
+      }
+    }
+  }
+  // Frame 0 paired with frame 1's image: the figures on all frames are target_mismatch's,
+  // and they rest on frame 0, so they spread.
+  std::vector<io::DepthImage> swapped = real;
+  swapped[0] = real[1];
+  const std::vector<TargetSpread> spread = target_jackknife(real, swapped, K);
+  const TargetMismatch all = target_mismatch(depth_stats(real, K), depth_stats(swapped, K));
+  ASSERT_EQ(spread.size(), all.compared.size());
+  int spreading = 0;
+  for (std::size_t k = 0; k < spread.size(); ++k) {
+    EXPECT_EQ(spread[k].all.name, all.compared[k].name);
+    EXPECT_EQ(spread[k].all.value(), all.compared[k].value()) << all.compared[k].name;
+    spreading += spread[k].se > 0 ? 1 : 0;
+  }
+  EXPECT_GE(spreading, 20);
+  // Holes per frame, left out by hand: sqrt((n - 1) / n sum (v_i - mean)^2).
+  std::vector<double> v;
+  for (std::size_t i = 0; i < real.size(); ++i) {
+    std::vector<io::DepthImage> r, s;
+    for (std::size_t f = 0; f < real.size(); ++f)
+      if (f != i) r.push_back(real[f]), s.push_back(swapped[f]);
+    v.push_back(depth_stats(s, K).holes_per_frame / depth_stats(r, K).holes_per_frame);
+  }
+  double mean = 0, ss = 0;
+  for (const double x : v) mean += x / static_cast<double>(v.size());
+  for (const double x : v) ss += (x - mean) * (x - mean);
+  const auto holes = std::find_if(spread.begin(), spread.end(),
+                                  [](const TargetSpread& t) { return t.all.name == "holes per frame"; });
+  ASSERT_NE(holes, spread.end());
+  EXPECT_GT(holes->se, 0.0);
+  EXPECT_NEAR(holes->se, std::sqrt(3.0 / 4.0 * ss), 1e-12);
+  // Refusals.
+  const std::vector<io::DepthImage> two(real.begin(), real.begin() + 2);
+  EXPECT_NE(test::error_of<std::invalid_argument>([&] { (void)target_jackknife(two, two, K); })
+                .find("2 frames; leaving one out needs at least 3"),
+            std::string::npos);
+  const std::vector<io::DepthImage> five(twice.begin(), twice.begin() + 5);
+  EXPECT_NE(test::error_of<std::invalid_argument>([&] { (void)target_jackknife(real, five, K); })
+                .find("5 simulated images are not draws of 4 frames"),
+            std::string::npos);
+}
+
 // The first two shared frames and their statistics: enough for a fit's mechanics.
 struct TwoFrames {
   io::Intrinsics K;

@@ -309,10 +309,22 @@ inline constexpr NoiseStructure kNoiseStructures[] = {NoiseStructure::one_field,
 /// and the median band width on the side away from the projector (where the camera's frames
 /// decide a side; on the same image side where the simulation's do not), the flying rate
 /// beside the bands and the holes per frame (where the camera has any).
+/// One statistic target_mismatch compared.
+struct TargetStatistic {
+  std::string name;
+  double real = 0, sim = 0;
+  /// Compared as sim - real (a correlation the camera reads under kSmallCorrelation in
+  /// magnitude), else as sim / real.
+  bool difference = false;
+  double e = 0;  ///< its error: 1 at the band's edge
+  /// sim - real or sim / real, as it is compared.
+  [[nodiscard]] double value() const { return difference ? sim - real : sim / real; }
+};
 struct TargetMismatch {
   double cost = 0;
   int statistics = 0;                ///< how many were compared
   std::vector<std::string> outside;  ///< "name sim/real" of those with e > 1
+  std::vector<TargetStatistic> compared;  ///< each of them, in the order above
 };
 inline constexpr double kSmallCorrelation = 0.2, kSmallCorrelationTol = 0.05;
 /// A sigma bin counts (in the fits, the mismatch, the two-scale fit's depth range and the
@@ -323,6 +335,27 @@ inline constexpr int kMinBinWindows = 10;
 /// windows that would measure it).
 inline constexpr int kMinSimWindows = 5;
 [[nodiscard]] TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim);
+
+/// A statistic of target_mismatch on all frames, and how much it rests on any one frame.
+struct TargetSpread {
+  TargetStatistic all;  ///< on every frame (and every draw)
+  /// The leave-one-frame-out jackknife's standard error of all.value(): sqrt((n - 1) / n
+  /// sum_i (v_i - v_mean)^2), v_i its value without frame i on either side (and without
+  /// every draw of it). It says how far the same camera and model, seen on other frames
+  /// of the same kind, would move the figure; not how far the model's own fit would.
+  /// NaN where leaving a frame out leaves the statistic uncompared (a bin the camera's
+  /// other frames hold under kMinBinWindows windows in).
+  double se = 0;
+};
+/// Each statistic of target_mismatch(depth_stats(real), depth_stats(sim)) with its spread
+/// over the frames. `sim` holds the same frames re-rendered (rerender_surfaces), `draws`
+/// images of each, draw-major: the comparison is paired, so frame f leaves both sides
+/// together. Throws std::invalid_argument for under 3 frames or a `sim` whose size is not
+/// a positive multiple of `real`'s, and as depth_stats does (naming the frame left out).
+[[nodiscard]] std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& real,
+                                                         const std::vector<io::DepthImage>& sim,
+                                                         const io::Intrinsics& intrinsics,
+                                                         const DepthStatsParams& params = {});
 
 /// How fit_noise_rerendered searches.
 struct RerenderFitParams {
