@@ -182,16 +182,17 @@ int run_fidelity(const FidelityOptions& o) {
   // image is a draw of one real frame (--rerender), so that a frame can leave both sides.
   nlohmann::json j_targets = nullptr;
   const std::size_t n_frames = real_m.images.size();
-  if (o.rerender && n_frames >= 3) {
-    std::vector<sim::TargetSpread> spread;
-    try {
-      spread = sim::target_jackknife(real_m.images, sim_m.images, real_m.K);
-    } catch (const std::invalid_argument& e) {
-      throw io::InputError("--real: " + o.real + ": " + e.what());
-    }
+  if (o.rerender && n_frames < 3) {
+    text << "\ntargets (issue 20): not listed: " << n_frames
+         << " frames, and their spread needs 3 or more\n";
+  } else if (o.rerender) {
+    const std::vector<sim::TargetSpread> spread =
+        sim::target_jackknife(real_m.images, sim_m.images, real_m.K);
     text << "\ntargets (issue 20): sim/real, or sim - real for a correlation the camera reads\n"
-         << "under " << std::defaultfloat << sim::kSmallCorrelation << "; se: leave-one-frame-out jackknife over "
-         << n_frames << " frames\n"
+         << "under " << std::defaultfloat << sim::kSmallCorrelation
+         << "; se: jackknife over " << n_frames << " frames, "
+         << std::min<std::size_t>(n_frames, sim::kJackknifeGroups)
+         << " groups left out in turn (nan: not compared without one of them)\n"
          << std::left << std::setw(44) << "target" << std::right << std::setw(10) << "compared"
          << std::setw(10) << "value" << std::setw(10) << "se" << std::setw(10) << "band" << "\n";
     j_targets = nlohmann::json::array();

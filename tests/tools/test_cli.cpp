@@ -1780,9 +1780,11 @@ background:
   // The targets, each with its spread over the 11 frames (a --sim recording has
   // other frames than the camera's: no targets).
   EXPECT_TRUE(j["targets"].is_null());
-  ASSERT_EQ(j2["targets"].size(), 32u);
-  const nlohmann::json& holes = j2["targets"][31];
-  EXPECT_EQ(holes["target"], "holes per frame");
+  ASSERT_TRUE(j2["targets"].is_array());
+  nlohmann::json holes;
+  for (const auto& t : j2["targets"])
+    if (t["target"] == "holes per frame") holes = t;
+  ASSERT_FALSE(holes.is_null()) << j2["targets"].dump();
   EXPECT_EQ(holes["compared"], "sim/real");
   EXPECT_EQ(holes["value"], fidelity_row(j2, "holes per frame")["ratio"]);
   EXPECT_GT(holes["se"].get<double>(), 0.0);

@@ -24,12 +24,16 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
   TargetMismatch m;
   const double band = std::log(1.25);
   char line[160];
+  int sides = 0;  // of the edge statistics (TargetStatistic::sides), set below
   const auto add = [&](const std::string& name, double e, double r, double s, bool difference) {
     ++m.statistics;
     m.cost += e * e;
-    m.compared.push_back({name, r, s, difference, e});
+    const TargetStatistic& t = m.compared.emplace_back(TargetStatistic{name, r, s, difference, e, sides});
     if (e > 1) {
-      std::snprintf(line, sizeof line, "%s %.2f", name.c_str(), r != 0 ? s / r : 0.0);
+      if (difference)
+        std::snprintf(line, sizeof line, "%s %+.3f (sim - real)", name.c_str(), t.value());
+      else
+        std::snprintf(line, sizeof line, "%s %.2f", name.c_str(), t.value());
       m.outside.emplace_back(line);
     }
   };
@@ -78,9 +82,11 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
     const int side = sim.projector_side != 0 ? sim.projector_side : real.projector_side;
     const EdgeSide& r = real.projector_side < 0 ? real.near_right : real.near_left;
     const EdgeSide& s = side < 0 ? sim.near_right : sim.near_left;
+    sides = 3 * real.projector_side + side;
     ratio("other side invalid at 1 px", r.invalid_1px, s.invalid_1px);
     ratio("other side invalid at 2 px", r.invalid_2px, s.invalid_2px);
     ratio("other side band median px", r.band_median_px, s.band_median_px);
+    sides = 0;
   }
   ratio("flying rate beside bands", real.flying_band_rate, sim.flying_band_rate);
   ratio("holes per frame", real.holes_per_frame, sim.holes_per_frame);
@@ -90,11 +96,14 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
 std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& real,
                                            const std::vector<io::DepthImage>& sim,
                                            const io::Intrinsics& intrinsics,
-                                           const DepthStatsParams& params) {
+                                           const DepthStatsParams& params, int max_groups) {
   const std::size_t n = real.size();
   if (n < 3)
     throw std::invalid_argument("target_jackknife: " + std::to_string(n) +
                                 " frames; leaving one out needs at least 3");
+  if (max_groups < 2)
+    throw std::invalid_argument("target_jackknife: max_groups = " + std::to_string(max_groups) +
+                                ": must be >= 2");
   if (sim.empty() || sim.size() % n != 0)
     throw std::invalid_argument("target_jackknife: " + std::to_string(sim.size()) +
                                 " simulated images are not draws of " + std::to_string(n) +
@@ -105,43 +114,47 @@ std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& re
        target_mismatch(depth_stats(real, intrinsics, params), depth_stats(sim, intrinsics, params))
            .compared)
     out.push_back({t, 0.0});
-  // Each statistic's values without frame i, by its name (a bin's windows can fall under
-  // kMinBinWindows without one frame, and then it is not compared at all).
+  // Consecutive frames in g groups (frame f in group f g / n): one frame each up to
+  // max_groups, so that the cost stays that many readings of the recording.
+  const std::size_t g = std::min(n, static_cast<std::size_t>(max_groups));
+  const auto group = [&](std::size_t f) { return f * g / n; };
+  // Each statistic's values without group i, where it was compared as on all frames.
   std::vector<std::vector<double>> left(out.size());
   std::vector<io::DepthImage> r, s;
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = 0; i < g; ++i) {
     r.clear();
     s.clear();
     for (std::size_t f = 0; f < n; ++f)
-      if (f != i) r.push_back(real[f]);
+      if (group(f) != i) r.push_back(real[f]);
     for (std::size_t d = 0; d < draws; ++d)
       for (std::size_t f = 0; f < n; ++f)
-        if (f != i) s.push_back(sim[d * n + f]);
+        if (group(f) != i) s.push_back(sim[d * n + f]);
     TargetMismatch m;
     try {
       m = target_mismatch(depth_stats(r, intrinsics, params), depth_stats(s, intrinsics, params));
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument("target_jackknife: without frame " + std::to_string(i) + ": " +
-                                  e.what());
+    } catch (const std::invalid_argument&) {
+      continue;  // unreadable without this group: every statistic's se is NaN
     }
-    for (std::size_t k = 0; k < out.size(); ++k)
+    for (std::size_t k = 0; k < out.size(); ++k) {
+      const TargetStatistic& a = out[k].all;
       for (const TargetStatistic& t : m.compared)
-        if (t.name == out[k].all.name && t.difference == out[k].all.difference) {
+        if (t.name == a.name && t.difference == a.difference && t.sides == a.sides) {
           left[k].push_back(t.value());
           break;
         }
+    }
   }
   for (std::size_t k = 0; k < out.size(); ++k) {
-    if (left[k].size() != n) {
+    if (left[k].size() != g) {
       out[k].se = std::numeric_limits<double>::quiet_NaN();
       continue;
     }
     double mean = 0;
     for (const double v : left[k]) mean += v;
-    mean /= static_cast<double>(n);
+    mean /= static_cast<double>(g);
     double ss = 0;
     for (const double v : left[k]) ss += (v - mean) * (v - mean);
-    out[k].se = std::sqrt(static_cast<double>(n - 1) / static_cast<double>(n) * ss);
+    out[k].se = std::sqrt(static_cast<double>(g - 1) / static_cast<double>(g) * ss);
   }
   return out;
 }

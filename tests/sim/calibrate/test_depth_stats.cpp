@@ -709,8 +709,9 @@ TEST(DepthStats, TargetMismatchCountsTheIssuesStatistics) {
 
 // target_jackknife: paired over the frames, so a frame leaves with every draw of it; the
 // value on all frames is target_mismatch's; the spread is the jackknife's, checked on one
-// statistic against leave-one-out readings made here; too few frames or draws that do not
-// divide are refused.
+// statistic against leave-one-out readings made here, a frame or two a group; NaN where
+// nothing can be read without a group; too few frames or groups, and draws that do not
+// divide, are refused.
 TEST(DepthStats, TargetJackknifeLeavesOneFrameOutOnBothSides) {
   io::Intrinsics K;
   std::vector<io::DepthImage> real = real_frames(K);
@@ -727,9 +728,10 @@ TEST(DepthStats, TargetJackknifeLeavesOneFrameOutOnBothSides) {
   constexpr double kSums = 1e-12;
   std::vector<io::DepthImage> twice = real;
   twice.insert(twice.end(), real.begin(), real.end());
+  const DepthStats stats = depth_stats(real, K);
   for (const auto* sim : {&real, &twice}) {
     const std::vector<TargetSpread> self = target_jackknife(real, *sim, K);
-    ASSERT_EQ(self.size(), 32u);
+    ASSERT_EQ(self.size(), static_cast<std::size_t>(target_mismatch(stats, stats).statistics));
     EXPECT_GE(finite_se(self), 28);
     for (const TargetSpread& t : self) {
       EXPECT_NEAR(t.all.value(), t.all.difference ? 0.0 : 1.0, kSums) << t.all.name;
@@ -752,22 +754,45 @@ TEST(DepthStats, TargetJackknifeLeavesOneFrameOutOnBothSides) {
     spreading += spread[k].se > 0 ? 1 : 0;
   }
   EXPECT_GE(spreading, 20);
-  // Holes per frame, left out by hand: sqrt((n - 1) / n sum (v_i - mean)^2).
-  std::vector<double> v;
-  for (std::size_t i = 0; i < real.size(); ++i) {
-    std::vector<io::DepthImage> r, s;
-    for (std::size_t f = 0; f < real.size(); ++f)
-      if (f != i) r.push_back(real[f]), s.push_back(swapped[f]);
-    v.push_back(depth_stats(s, K).holes_per_frame / depth_stats(r, K).holes_per_frame);
+  // Holes per frame, left out by hand: sqrt((g - 1) / g sum (v_i - mean)^2), one frame a
+  // group, and with at most 2 groups frames 0-1 and 2-3.
+  const auto holes_se = [&](const std::vector<TargetSpread>& v) {
+    const auto it = std::find_if(v.begin(), v.end(),
+                                 [](const TargetSpread& t) { return t.all.name == "holes per frame"; });
+    return it == v.end() ? std::nan("") : it->se;
+  };
+  for (const std::size_t per_group : {1u, 2u}) {
+    SCOPED_TRACE(std::to_string(per_group) + " frames a group");
+    std::vector<double> v;
+    for (std::size_t i = 0; i < real.size() / per_group; ++i) {
+      std::vector<io::DepthImage> r, s;
+      for (std::size_t f = 0; f < real.size(); ++f)
+        if (f / per_group != i) r.push_back(real[f]), s.push_back(swapped[f]);
+      v.push_back(depth_stats(s, K).holes_per_frame / depth_stats(r, K).holes_per_frame);
+    }
+    double mean = 0, ss = 0;
+    for (const double x : v) mean += x / static_cast<double>(v.size());
+    for (const double x : v) ss += (x - mean) * (x - mean);
+    const double g = static_cast<double>(v.size());
+    const double se = holes_se(per_group == 1 ? spread : target_jackknife(real, swapped, K, {}, 2));
+    EXPECT_GT(se, 0.0);
+    EXPECT_NEAR(se, std::sqrt((g - 1) / g * ss), 1e-12);
   }
-  double mean = 0, ss = 0;
-  for (const double x : v) mean += x / static_cast<double>(v.size());
-  for (const double x : v) ss += (x - mean) * (x - mean);
-  const auto holes = std::find_if(spread.begin(), spread.end(),
-                                  [](const TargetSpread& t) { return t.all.name == "holes per frame"; });
-  ASSERT_NE(holes, spread.end());
-  EXPECT_GT(holes->se, 0.0);
-  EXPECT_NEAR(holes->se, std::sqrt(3.0 / 4.0 * ss), 1e-12);
+  // Without frame 0 the others (a 14 x 14 px patch each) hold no flat window: nothing can
+  // be read, so nothing has a spread, and the figures on all frames still stand.
+  std::vector<io::DepthImage> patches(3, real[0]);
+  for (std::size_t f = 1; f < 3; ++f)
+    for (int v = 0; v < K.height; ++v)
+      for (int u = 0; u < K.width; ++u)
+        if (v < 200 || v >= 214 || u < 300 || u >= 314)
+          patches[f].data[static_cast<std::size_t>(v) * K.width + u] = 0;
+  ASSERT_THROW((void)depth_stats({patches[1], patches[2]}, K), std::invalid_argument);
+  const std::vector<TargetSpread> unreadable = target_jackknife(patches, patches, K);
+  ASSERT_FALSE(unreadable.empty());
+  for (const TargetSpread& t : unreadable) {
+    EXPECT_TRUE(std::isnan(t.se)) << t.all.name;
+    EXPECT_NEAR(t.all.value(), t.all.difference ? 0.0 : 1.0, kSums) << t.all.name;
+  }
   // Refusals.
   const std::vector<io::DepthImage> two(real.begin(), real.begin() + 2);
   EXPECT_NE(test::error_of<std::invalid_argument>([&] { (void)target_jackknife(two, two, K); })
@@ -776,6 +801,9 @@ TEST(DepthStats, TargetJackknifeLeavesOneFrameOutOnBothSides) {
   const std::vector<io::DepthImage> five(twice.begin(), twice.begin() + 5);
   EXPECT_NE(test::error_of<std::invalid_argument>([&] { (void)target_jackknife(real, five, K); })
                 .find("5 simulated images are not draws of 4 frames"),
+            std::string::npos);
+  EXPECT_NE(test::error_of<std::invalid_argument>([&] { (void)target_jackknife(real, real, K, {}, 1); })
+                .find("max_groups = 1: must be >= 2"),
             std::string::npos);
 }
 

@@ -297,6 +297,22 @@ inline constexpr NoiseStructure kNoiseStructures[] = {NoiseStructure::one_field,
                                  const DepthStats* shape = nullptr,
                                  NoiseStructure structure = NoiseStructure::one_field);
 
+/// One statistic target_mismatch compared (its name, and the two readings in the
+/// statistic's own unit: metres, a share, a count per frame, pixels).
+struct TargetStatistic {
+  std::string name;
+  double real = 0, sim = 0;
+  /// Compared as sim - real (a correlation the camera reads under kSmallCorrelation in
+  /// magnitude), else as sim / real (the camera's reading is then > 0).
+  bool difference = false;
+  double e = 0;  ///< its error: 1 at the band's edge
+  /// An edge statistic's image sides, read off the projector side (-1 left, +1 right):
+  /// 3 real's + the simulation's; 0 for every other statistic.
+  int sides = 0;
+  /// sim - real or sim / real, as it is compared.
+  [[nodiscard]] double value() const { return difference ? sim - real : sim / real; }
+};
+
 /// How far a simulated recording's statistics `sim` are from the camera's `real` on the
 /// targets of issue 20 (docs/sensor.md). Each statistic's error e is |ln(sim / real)| /
 /// ln(1.25) (1 at the edge of the band 0.8-1.25), or, for a correlation the camera reads
@@ -309,21 +325,11 @@ inline constexpr NoiseStructure kNoiseStructures[] = {NoiseStructure::one_field,
 /// and the median band width on the side away from the projector (where the camera's frames
 /// decide a side; on the same image side where the simulation's do not), the flying rate
 /// beside the bands and the holes per frame (where the camera has any).
-/// One statistic target_mismatch compared.
-struct TargetStatistic {
-  std::string name;
-  double real = 0, sim = 0;
-  /// Compared as sim - real (a correlation the camera reads under kSmallCorrelation in
-  /// magnitude), else as sim / real.
-  bool difference = false;
-  double e = 0;  ///< its error: 1 at the band's edge
-  /// sim - real or sim / real, as it is compared.
-  [[nodiscard]] double value() const { return difference ? sim - real : sim / real; }
-};
 struct TargetMismatch {
   double cost = 0;
   int statistics = 0;                ///< how many were compared
-  std::vector<std::string> outside;  ///< "name sim/real" of those with e > 1
+  /// Those with e > 1: "name sim/real", or "name +d (sim - real)" for a difference.
+  std::vector<std::string> outside;
   std::vector<TargetStatistic> compared;  ///< each of them, in the order above
 };
 inline constexpr double kSmallCorrelation = 0.2, kSmallCorrelationTol = 0.05;
@@ -339,23 +345,32 @@ inline constexpr int kMinSimWindows = 5;
 /// A statistic of target_mismatch on all frames, and how much it rests on any one frame.
 struct TargetSpread {
   TargetStatistic all;  ///< on every frame (and every draw)
-  /// The leave-one-frame-out jackknife's standard error of all.value(): sqrt((n - 1) / n
-  /// sum_i (v_i - v_mean)^2), v_i its value without frame i on either side (and without
-  /// every draw of it). It says how far the same camera and model, seen on other frames
-  /// of the same kind, would move the figure; not how far the model's own fit would.
-  /// NaN where leaving a frame out leaves the statistic uncompared (a bin the camera's
-  /// other frames hold under kMinBinWindows windows in).
+  /// The jackknife's standard error of all.value(): sqrt((g - 1) / g sum_i (v_i -
+  /// v_mean)^2), v_i its value without group i of the frames on either side (and without
+  /// every draw of them); g groups of consecutive frames, one frame each up to
+  /// `max_groups` frames (target_jackknife). It says how far the same camera and model, seen on other
+  /// frames of the same kind, would move the figure; not how far the model's own fit
+  /// would. For a median of whole pixels it is the jump between neighbouring values more
+  /// than an error. NaN where leaving a group out leaves the statistic uncompared or
+  /// compared otherwise: a bin under kMinBinWindows windows, a correlation whose magnitude
+  /// crosses kSmallCorrelation, an edge statistic whose projector side changes, or a
+  /// group without which the statistics cannot be read at all.
   double se = 0;
 };
+/// target_jackknife's groups at most, by default: its cost is that many readings of
+/// nearly all the frames.
+inline constexpr int kJackknifeGroups = 20;
 /// Each statistic of target_mismatch(depth_stats(real), depth_stats(sim)) with its spread
 /// over the frames. `sim` holds the same frames re-rendered (rerender_surfaces), `draws`
-/// images of each, draw-major: the comparison is paired, so frame f leaves both sides
-/// together. Throws std::invalid_argument for under 3 frames or a `sim` whose size is not
-/// a positive multiple of `real`'s, and as depth_stats does (naming the frame left out).
+/// images of each, draw-major: the comparison is paired, so a frame leaves both sides
+/// together; g = min(frames, max_groups) groups (TargetSpread::se). Throws
+/// std::invalid_argument for under 3 frames, max_groups under 2, or a `sim` whose size is
+/// not a positive multiple of `real`'s, and as depth_stats does on all frames.
 [[nodiscard]] std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& real,
                                                          const std::vector<io::DepthImage>& sim,
                                                          const io::Intrinsics& intrinsics,
-                                                         const DepthStatsParams& params = {});
+                                                         const DepthStatsParams& params = {},
+                                                         int max_groups = kJackknifeGroups);
 
 /// How fit_noise_rerendered searches.
 struct RerenderFitParams {
