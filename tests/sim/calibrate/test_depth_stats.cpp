@@ -699,7 +699,12 @@ TEST(DepthStats, TargetMismatchCountsTheIssuesStatistics) {
   EXPECT_GT(lost.cost, 100.0);
   // A simulation whose bands decide no side is compared on the camera's image side.
   ASSERT_LT(real.projector_side, 0);  // projector image-left: the other side is near_right
+  // Each edge statistic carries the image sides it read (3 real's + the simulation's),
+  // so that a jackknife can tell a side that flips; the others carry none.
   sim = real;
+  sim.projector_side = 1;
+  for (const TargetStatistic& t : target_mismatch(real, sim).compared)
+    EXPECT_EQ(t.sides, t.name.rfind("other side ", 0) == 0 ? -3 + 1 : 0) << t.name;
   sim.projector_side = 0;
   EXPECT_EQ(target_mismatch(real, sim).statistics, 32);
   sim.near_right.band_median_px = 2 * real.near_right.band_median_px;
