@@ -19,7 +19,9 @@ AxialKernel parse_axial_kernel(std::string_view name) {
 
 AxialNoise::Point AxialNoise::point(double z, double theta) const {
   const double th = std::min(std::abs(theta), theta_cap);
-  return {z, std::sqrt(std::max(z, 1e-6)), th / (std::numbers::pi / 2 - th)};
+  const double q = th / (std::numbers::pi / 2 - th);
+  // q * q as before the power existed, so that the power 2 draws the same bits.
+  return {z, std::sqrt(std::max(z, 1e-6)), q, angle_power == 2 ? q * q : std::pow(q, angle_power)};
 }
 
 double AxialNoise::sigma(double z, double theta) const { return sigma(point(z, theta)); }

@@ -148,6 +148,7 @@ TEST_F(BadScene, SensorKeysNameLineAndKey) {
   // The reader and validate() share one range: what the file may say, code may set.
   has("noise:\n  axial: {a_m: 0.5}\n", ":2: noise.axial.a_m = 0.5: must be in [0, 0.1]");
   has("noise:\n  axial: {theta_cap_deg: 90}\n", ":2: noise.axial.theta_cap_deg = 90: must be in [0, 89.9]");
+  has("noise:\n  axial: {angle_power: 0.1}\n", ":2: noise.axial.angle_power = 0.1: must be in [0.5, 4]");
   has("noise:\n  dropouts: {hole_median_px: 5, hole_p90_px: 3}\n",
       ":2: noise.dropouts.hole_p90_px = 3: must be >= hole_median_px (5)");
   has("noise:\n  axial: {sigma: 1}\n", "noise.axial.sigma: unknown key");
@@ -228,6 +229,7 @@ TEST_F(BadScene, NoiseBlockReadsBackToTheSameNoise) {
   NoiseParams n = NoiseParams::sr300();
   n.axial.a = 1.0 / 30000;
   n.axial.theta_cap = 0.123456789;
+  n.axial.angle_power = 1.375;
   n.axial.kernel = AxialKernel::matern52;
   n.axial.correlation_px = 4.5;  // a Matern's range is at least 3 px
   n.axial.correlation_cols_px = 5.5;
@@ -238,6 +240,7 @@ TEST_F(BadScene, NoiseBlockReadsBackToTheSameNoise) {
   const NoiseParams m = load_scene(p).noise;
   EXPECT_EQ(m.axial.a, n.axial.a);
   EXPECT_EQ(m.axial.theta_cap, n.axial.theta_cap);
+  EXPECT_EQ(m.axial.angle_power, n.axial.angle_power);
   EXPECT_EQ(m.axial.correlation_px, n.axial.correlation_px);
   EXPECT_EQ(m.axial.kernel, AxialKernel::matern52);
   EXPECT_FALSE(m.edges.enabled);

@@ -373,6 +373,30 @@ TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
   }
 }
 
+// The angle term's power (issue 20): at 60 degrees q = theta / (pi/2 - theta) = 2, so with
+// k_theta / sqrt(z) = a / 2 the term is a q^p / 2: a for the power 1, 2a for Nguyen et
+// al.'s 2, and the plate's one-field noise reads a + t. The power 2 is q * q to the bit,
+// so that the scenes from before the power draw the same images.
+TEST(SensorNoise, AnglePowerSetsHowFastTheAngleTermGrows) {
+  constexpr double kSigma = 0.002;  // a [m]
+  const double theta = std::numbers::pi / 3;
+  NoiseParams n = NoiseParams::off();
+  n.axial.enabled = true;
+  n.axial.a = kSigma;
+  n.axial.c = 0;
+  n.axial.k_theta = kSigma * std::sqrt(0.6) / 2;
+  const AxialNoise::Point p = n.axial.point(0.6, theta);
+  EXPECT_EQ(p.q_power, p.q * p.q);
+  for (const double power : {1.0, 2.0}) {
+    n.axial.angle_power = power;
+    SCOPED_TRACE("angle_power " + std::to_string(power));
+    const double sigma = kSigma * (1 + power);
+    ASSERT_NEAR(n.axial.sigma(0.6, theta), sigma, 1e-12);
+    EXPECT_NEAR(plate_field(n, 0, 0).sigma, kSigma, kStageSigmaRelTol * kSigma);
+    EXPECT_NEAR(plate_field(n, 0, 0, theta).sigma, sigma, kStageSigmaRelTol * sigma);
+  }
+}
+
 // The pixel-scale field's depth power (issue 20), on the two-term field above without the
 // angle term: on a plate at depth z the pixel-scale field carries (1 - s) (a r^p)^2 of the
 // variance, r = z' / ref with z' held to the range, and the low field s a^2, so sigma^2 =

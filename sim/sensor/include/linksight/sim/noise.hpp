@@ -36,9 +36,9 @@ inline constexpr double kMinMaternRangePx = 3.0;
 [[nodiscard]] AxialKernel parse_axial_kernel(std::string_view name);
 
 /// Axial (along the optical axis) Gaussian noise:
-/// sigma_z(z, theta) = a + c z^2 + k_theta / sqrt(z) * theta^2 / (pi/2 - theta)^2,
-/// the form of Nguyen, Izadi & Lovell (3DIMPVT 2012, Eq. 5) with their constant terms
-/// replaced by a + c z^2. theta is the incidence angle at the camera.
+/// sigma_z(z, theta) = a + c z^2 + k_theta / sqrt(z) * (theta / (pi/2 - theta))^angle_power,
+/// the form of Nguyen, Izadi & Lovell (3DIMPVT 2012, Eq. 5; their power is 2) with their
+/// constant terms replaced by a + c z^2. theta is the incidence angle at the camera.
 struct AxialNoise {
   bool enabled = true;
   double a = 0.000048;   ///< [m] (fitted: 0.048 mm)
@@ -46,6 +46,10 @@ struct AxialNoise {
   double k_theta = 0.00032;  ///< [m^1.5] (fitted; Nguyen et al. have 0.0001 for the Kinect)
   /// The angle term is evaluated at min(theta, theta_cap) so it stays finite [rad].
   double theta_cap = 80.0 * std::numbers::pi / 180.0;
+  /// The angle term's power of theta / (pi/2 - theta): 2 is Nguyen et al.'s; below 2 it
+  /// grows more slowly towards grazing incidence (issue 20: the SR305's sigma grows about
+  /// 1.6x from the 45-60 deg bin to the 60-75 deg one, the power 2 gives 2.2x).
+  double angle_power = 2;
   /// Spatial correlation: the unit normal field is a white field blurred by a Gaussian of
   /// this standard deviation [px] and rescaled to unit variance, so neighbours at lag L
   /// correlate by exp(-L^2 / (4 s^2)); with `kernel` matern52, filtered to a Matern-5/2
@@ -111,10 +115,11 @@ struct AxialNoise {
     double z = 0;       ///< depth [m]
     double root_z = 0;  ///< sqrt(max(z, 1e-6)) [m^0.5]
     double q = 0;       ///< theta' / (pi/2 - theta'), theta' = min(|theta|, theta_cap)
+    double q_power = 0;  ///< q^angle_power
   };
   [[nodiscard]] Point point(double z, double theta) const;
   [[nodiscard]] double sigma(const Point& p) const {
-    return base(p) + k_theta / p.root_z * p.q * p.q;
+    return base(p) + k_theta / p.root_z * p.q_power;
   }
   /// sigma without its angle term, a + c z^2 [m]: what the low-frequency field scales when
   /// low_angle_term is false.
@@ -127,6 +132,7 @@ struct AxialNoise {
     ar("c_per_m", c, fields::in(0, 0.1));
     ar("k_theta", k_theta, fields::in(0, 0.1));
     ar("theta_cap_deg", theta_cap, fields::deg(fields::in(0, 89.9)));
+    ar("angle_power", angle_power, fields::in(0.5, 4));
     ar("correlation_px", correlation_px, fields::in(0, 20));
     ar("correlation_cols_px", correlation_cols_px, fields::in(0, 20));
     ar("kernel", kernel, parse_axial_kernel);
