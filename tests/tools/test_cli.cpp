@@ -1659,11 +1659,11 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   EXPECT_EQ(r3.code, 0) << r3.err;
   const std::string text3 = slurp_text(scaled);
   // The render count is the search's path, not a setting, so only its bounds are pinned:
-  // the start, then each of the 10 parameters tried one way at least and both ways at most
-  // in the one sweep (11-21).
+  // the start, then each of the 11 parameters tried one way at least and both ways at most
+  // in the one sweep (12-23).
   EXPECT_TRUE(std::regex_search(
       text3, std::regex("# note: two-scale structure by re-rendering 11 frames, 2 draws each "
-                        "\\((1[1-9]|2[01]) renders, 1 sweeps\\)")))
+                        "\\((1[2-9]|2[0-3]) renders, 1 sweeps\\)")))
       << text3;
   EXPECT_NE(text3.find("# note: lateral.sigma_px and dropouts.min_signal kept"), std::string::npos) << text3;
   std::ofstream(dir / "scene3.yaml") << "duration_s: 0.1\n" << text3;

@@ -186,23 +186,27 @@ struct Cast {
 // counts every interior hole as a drawn one; the steeper incidence cut-off leaves holes of
 // its own, about 3.6 a frame on the shared frames), and the pixel-scale field's depth
 // power (the quadratic-fit sigma by depth pins it: the camera's grows faster with depth
-// than a + c z^2; docs/sensor.md, "The pixel-scale noise by depth").
-constexpr int kParams = 10;
+// than a + c z^2; docs/sensor.md, "The pixel-scale noise by depth"), and the angle term's
+// power (the sigma by angle pins it: the camera's grows more slowly towards grazing
+// incidence than Nguyen et al.'s square; docs/sensor.md, "The angle term's power").
+constexpr int kParams = 11;
 using Vec = std::array<double, kParams>;
-constexpr Vec kStart = {4, 2, 2, 2, 8, 8, 0.95, 0, 1, 0};  // max_incidence: the start's
-constexpr Vec kStep = {1, 0.5, 0.4, 0.4, 2, 2, 0.02, 3, 0.1, 0.5};
+constexpr Vec kStart = {4, 2, 2, 2, 8, 8, 0.95, 0, 1, 0, 2};  // max_incidence: the start's
+constexpr Vec kStep = {1, 0.5, 0.4, 0.4, 2, 2, 0.02, 3, 0.1, 0.5, 0.25};
 // The low field on a grid of 2 px (AxialNoise::low_stride_px): within the sensor's time
 // budget (bench/README.md), and its widths kept to 3 strides or more.
 constexpr int kLowStridePx = 2;
-constexpr Vec kLo = {0.5, 0, 0.4, 0.4, 3 * kLowStridePx, 3 * kLowStridePx, 0, 40, 0, -2};
-constexpr Vec kHi = {20, 20, 8, 8, 20, 20, 0.998, 89, 2, 4};
+constexpr Vec kLo = {0.5, 0, 0.4, 0.4, 3 * kLowStridePx, 3 * kLowStridePx, 0, 40, 0, -2, 0.5};
+constexpr Vec kHi = {20, 20, 8, 8, 20, 20, 0.998, 89, 2, 4, 4};
 
 NoiseParams candidate(const NoiseParams& base, const Vec& x) {
   NoiseParams n = base;
   AxialNoise& ax = n.axial;
   ax.a = base.axial.a * x[0];
   ax.c = base.axial.c * x[0];
-  ax.k_theta = base.axial.k_theta * x[1];
+  // The angle term's scale is the one at 60 degrees (q = 2), so that a step of the power
+  // turns the term about the middle of the camera's angles instead of scaling it.
+  ax.k_theta = base.axial.k_theta * x[1] * std::pow(2.0, 2 - x[10]);
   ax.kernel = AxialKernel::gaussian;
   ax.correlation_px = x[2];
   ax.correlation_cols_px = x[3];
@@ -214,6 +218,7 @@ NoiseParams candidate(const NoiseParams& base, const Vec& x) {
   n.dropouts.max_incidence = x[7] * std::numbers::pi / 180;
   n.dropouts.hole_rate = base.dropouts.hole_rate * x[8];
   ax.pixel_depth_power = x[9];
+  ax.angle_power = x[10];
   return n;
 }
 
@@ -335,13 +340,13 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
       line, sizeof line,
       "two-scale structure by re-rendering %zu frames, %d draw%s each (%d renders, %d "
       "sweeps): axial a, c "
-      "x%.3g and k_theta x%.3g of the one-field fit's, pixel-scale field %.2f x %.2f px "
+      "x%.3g and k_theta x%.3g (at 60 deg) of the one-field fit's with the angle power %.3g, pixel-scale field %.2f x %.2f px "
       "with the angle term, low-frequency field %.2f x %.2f px with %.4f of a + c z^2, "
       "pixel-scale share x (z / %.2f m)^%.3g over %.2f-%.2f m, "
       "dropouts.max_incidence %.1f deg, hole rate x%.3g; target mismatch %.3g (start "
       "%.3g) over the issue-20 statistics",
       frames.size(), params.draws, params.draws == 1 ? "" : "s", evaluations, params.sweeps,
-      x[0], x[1], ax.correlation_px, ax.correlation_cols_px, ax.low_rows_px, ax.low_cols_px,
+      x[0], x[1], x[10], ax.correlation_px, ax.correlation_cols_px, ax.low_rows_px, ax.low_cols_px,
       ax.low_share, ax.pixel_depth_ref_m, x[9], ax.pixel_depth_min_m, ax.pixel_depth_max_m, x[7], x[8], best.cost, start_cost);
   fit.notes.emplace_back(line);
   std::string out = "outside 0.8-1.25 on the fitted frames:";
