@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -28,6 +29,8 @@ using detail::uniform;
 // within 1e-6 (relative) of the power law for the preset's power over 0.5-0.9 m, about
 // 1e-5 for a power of 4 from 0.2 m.
 constexpr double kPixelFactorStep_m = 0.0005;
+// The angle term's table (SensorNoise::angle_power_): steps of theta over [0, theta_cap].
+constexpr double kAngleTableSteps = 4096;
 
 // The taps f(i), i = -R..R, scaled to sum k^2 = 1: one 1-D pass keeps unit white noise at
 // unit variance (at the image border the kernel is cut and the variance a little lower).
@@ -126,6 +129,12 @@ SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
     pixel_factor_.resize(steps + 2);  // one past the end: i + 1 is there at z == max too
     for (std::size_t i = 0; i < pixel_factor_.size(); ++i)
       pixel_factor_[i] = ax.pixel_depth_factor(pixel_factor_lo_m_ + static_cast<double>(i) * step);
+  }
+  if (ax.angle_power != 2 && ax.theta_cap > 0 && ax.low_share > 0 && !ax.low_angle_term) {
+    angle_per_rad_ = kAngleTableSteps / ax.theta_cap;
+    angle_power_.resize(static_cast<std::size_t>(kAngleTableSteps) + 2);  // one past the end: i + 1 at theta == cap
+    for (std::size_t i = 0; i < angle_power_.size(); ++i)
+      angle_power_[i] = ax.point(0, std::min(static_cast<double>(i) / angle_per_rad_, ax.theta_cap)).q_power;
   }
   // edges.drop_steps in the PNG's units: the least d with d unit > jump, found with the
   // same double product as the rule, so the two agree for every d.
@@ -431,7 +440,23 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
         }
       }
       if (split) {
-        const AxialNoise::Point p = ax.point(z0, in.incidence[pix]);
+        AxialNoise::Point p;
+        if (angle_power_.empty()) {
+          p = ax.point(z0, in.incidence[pix]);
+        } else {
+          // As AxialNoise::point, q^power from the table; a NaN incidence stays NaN.
+          const double th = std::min(std::abs(static_cast<double>(in.incidence[pix])), ax.theta_cap);
+          p.z = z0;
+          p.root_z = std::sqrt(std::max(z0, 1e-6));
+          if (th >= 0) {
+            const double t = th * angle_per_rad_;
+            const auto i = static_cast<std::size_t>(t);
+            const double f = t - static_cast<double>(i);
+            p.q_power = angle_power_[i] + f * (angle_power_[i + 1] - angle_power_[i]);
+          } else {
+            p.q_power = std::numeric_limits<double>::quiet_NaN();
+          }
+        }
         const double base = ax.base(p), angle = ax.sigma(p) - base;
         double pixel_base = base;
         if (!pixel_factor_.empty()) {

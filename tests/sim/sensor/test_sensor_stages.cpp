@@ -395,6 +395,19 @@ TEST(SensorNoise, AnglePowerSetsHowFastTheAngleTermGrows) {
     EXPECT_NEAR(plate_field(n, 0, 0).sigma, kSigma, kStageSigmaRelTol * kSigma);
     EXPECT_NEAR(plate_field(n, 0, 0, theta).sigma, sigma, kStageSigmaRelTol * sigma);
   }
+  // With the two fields apart the angle term t goes into the pixel-scale field in
+  // quadrature, sigma = sqrt(a^2 + t^2), and the sensor reads q^power from a table (but
+  // for the power 2): t = a 2^(p - 1).
+  n.axial.low_share = 0.5;
+  n.axial.low_angle_term = false;
+  constexpr int kBorder = 20;  // the low field's reach, 3 x 6 px
+  for (const double power : {1.625, 2.0}) {
+    n.axial.angle_power = power;
+    SCOPED_TRACE("two fields, angle_power " + std::to_string(power));
+    const double t = kSigma * std::pow(2.0, power - 1);
+    const double sigma = std::hypot(kSigma, t);
+    EXPECT_NEAR(plate_field(n, 0, kBorder, theta).sigma, sigma, kStageSigmaRelTol * sigma);
+  }
 }
 
 // The pixel-scale field's depth power (issue 20), on the two-term field above without the
