@@ -506,7 +506,7 @@ TEST(HeldOutFidelity, TheSr300PresetIsTheTwoScaleFit) {
   test::expect_fields_near(fit, NoiseParams::sr300(),
                            {"axial.a_m", "axial.c_per_m", "axial.k_theta", "axial.correlation_px",
                             "axial.correlation_cols_px", "axial.low_share", "axial.low_rows_px",
-                            "axial.low_cols_px", "axial.pixel_depth_power",
+                            "axial.low_cols_px", "axial.pixel_depth_power", "axial.angle_power",
                             "dropouts.max_incidence_deg", "dropouts.hole_rate"},
                            kPresetRelTol);
   // The power's range is the depth bins the frames fill: exact.
