@@ -206,7 +206,7 @@ NoiseParams candidate(const NoiseParams& base, const Vec& x) {
   ax.c = base.axial.c * x[0];
   // The angle term's scale is the one at 60 degrees (q = 2), so that a step of the power
   // turns the term about the middle of the camera's angles instead of scaling it.
-  ax.k_theta = base.axial.k_theta * x[1] * std::pow(2.0, 2 - x[10]);
+  ax.k_theta = base.axial.k_theta * x[1] * std::pow(2.0, base.axial.angle_power - x[10]);
   ax.kernel = AxialKernel::gaussian;
   ax.correlation_px = x[2];
   ax.correlation_cols_px = x[3];

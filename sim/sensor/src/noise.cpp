@@ -20,7 +20,7 @@ AxialKernel parse_axial_kernel(std::string_view name) {
 AxialNoise::Point AxialNoise::point(double z, double theta) const {
   const double th = std::min(std::abs(theta), theta_cap);
   const double q = th / (std::numbers::pi / 2 - th);
-  // q * q as before the power existed, so that the power 2 draws the same bits.
+  // For the power 2 sigma() multiplies by q twice, as before the power existed.
   return {z, std::sqrt(std::max(z, 1e-6)), q, angle_power == 2 ? q * q : std::pow(q, angle_power)};
 }
 

@@ -29,8 +29,10 @@ using detail::uniform;
 // within 1e-6 (relative) of the power law for the preset's power over 0.5-0.9 m, about
 // 1e-5 for a power of 4 from 0.2 m.
 constexpr double kPixelFactorStep_m = 0.0005;
-// The angle term's table (SensorNoise::angle_power_): steps of theta over [0, theta_cap].
-constexpr double kAngleTableSteps = 4096;
+// The angle term's table (SensorNoise::angle_power_): steps of theta over [0, theta_cap],
+// for a cap of at least kMinAngleTableCap [rad].
+constexpr std::size_t kAngleTableSteps = 4096;
+constexpr double kMinAngleTableCap = 1e-6;
 
 // The taps f(i), i = -R..R, scaled to sum k^2 = 1: one 1-D pass keeps unit white noise at
 // unit variance (at the image border the kernel is cut and the variance a little lower).
@@ -117,25 +119,19 @@ SensorNoise::SensorNoise(const NoiseParams& noise, const CameraParams& camera)
     low_rows_kernel_ = unit_variance_gaussian(ax.low_rows_px / ax.low_stride_px);
     low_cols_kernel_ = unit_variance_gaussian(ax.low_cols_px / ax.low_stride_px);
   }
-  if (ax.pixel_depth_power != 0 && ax.low_share > 0 && !ax.low_angle_term) {
-    pixel_factor_lo_m_ = ax.pixel_depth_min_m;
-    pixel_factor_hi_m_ = ax.pixel_depth_max_m;
+  const bool split = ax.low_share > 0 && !ax.low_angle_term;
+  if (ax.pixel_depth_power != 0 && split) {
     // Steps of at most kPixelFactorStep_m that end exactly at the range's end.
     // (For the preset's 0.4 m the step is 0.5 mm to the bit, as the table was first made.)
-    const double span = pixel_factor_hi_m_ - pixel_factor_lo_m_;
+    const double span = ax.pixel_depth_max_m - ax.pixel_depth_min_m;
     const auto steps = static_cast<std::size_t>(std::ceil(span / kPixelFactorStep_m));
-    const double step = span / static_cast<double>(steps);
-    pixel_factor_per_m_ = 1 / step;
-    pixel_factor_.resize(steps + 2);  // one past the end: i + 1 is there at z == max too
-    for (std::size_t i = 0; i < pixel_factor_.size(); ++i)
-      pixel_factor_[i] = ax.pixel_depth_factor(pixel_factor_lo_m_ + static_cast<double>(i) * step);
+    pixel_factor_ = LerpTable(ax.pixel_depth_min_m, ax.pixel_depth_max_m, steps,
+                              [&](double z) { return ax.pixel_depth_factor(z); });
   }
-  if (ax.angle_power != 2 && ax.theta_cap > 0 && ax.low_share > 0 && !ax.low_angle_term) {
-    angle_per_rad_ = kAngleTableSteps / ax.theta_cap;
-    angle_power_.resize(static_cast<std::size_t>(kAngleTableSteps) + 2);  // one past the end: i + 1 at theta == cap
-    for (std::size_t i = 0; i < angle_power_.size(); ++i)
-      angle_power_[i] = ax.point(0, std::min(static_cast<double>(i) / angle_per_rad_, ax.theta_cap)).q_power;
-  }
+  // Under a microradian of cap the table's step would be subnormal: std::pow does it.
+  if (ax.angle_power != 2 && ax.theta_cap >= kMinAngleTableCap && split)
+    angle_power_ = LerpTable(0, ax.theta_cap, kAngleTableSteps,
+                             [&](double th) { return ax.point(0, th).q_power; });
   // edges.drop_steps in the PNG's units: the least d with d unit > jump, found with the
   // same double product as the rule, so the two agree for every d.
   const double jump = noise.edges.jump, unit = camera.intrinsics.depth_scale;
@@ -443,29 +439,14 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
         AxialNoise::Point p;
         if (angle_power_.empty()) {
           p = ax.point(z0, in.incidence[pix]);
-        } else {
-          // As AxialNoise::point, q^power from the table; a NaN incidence stays NaN.
-          const double th = std::min(std::abs(static_cast<double>(in.incidence[pix])), ax.theta_cap);
+        } else {  // as AxialNoise::point, q^power from the table (a NaN incidence reads NaN)
           p.z = z0;
           p.root_z = std::sqrt(std::max(z0, 1e-6));
-          if (th >= 0) {
-            const double t = th * angle_per_rad_;
-            const auto i = static_cast<std::size_t>(t);
-            const double f = t - static_cast<double>(i);
-            p.q_power = angle_power_[i] + f * (angle_power_[i + 1] - angle_power_[i]);
-          } else {
-            p.q_power = std::numeric_limits<double>::quiet_NaN();
-          }
+          p.q_power = angle_power_(std::abs(static_cast<double>(in.incidence[pix])));
         }
         const double base = ax.base(p), angle = ax.sigma(p) - base;
         double pixel_base = base;
-        if (!pixel_factor_.empty()) {
-          const double t =
-              (std::clamp(z0, pixel_factor_lo_m_, pixel_factor_hi_m_) - pixel_factor_lo_m_) * pixel_factor_per_m_;
-          const auto i = static_cast<std::size_t>(t);
-          const double f = t - static_cast<double>(i);
-          pixel_base *= pixel_factor_[i] + f * (pixel_factor_[i + 1] - pixel_factor_[i]);
-        }
+        if (!pixel_factor_.empty()) pixel_base *= pixel_factor_(z0);
         z += std::sqrt(fine_share * pixel_base * pixel_base + angle * angle) * static_cast<double>(field_[pix]) +
              low_scale * base * static_cast<double>(low_field_[pix]);
       } else if (noise.axial.enabled) {

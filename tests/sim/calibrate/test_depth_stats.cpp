@@ -870,7 +870,7 @@ TEST(DepthStats, RerenderedFitImprovesOnItsStartForAnyThreadCount) {
   from_preset.params.validate();
   // "... target mismatch X (start Y) ...": X < Y (the start is not the fit).
   const auto [cost, start] = noted_mismatch(one);
-  EXPECT_LT(cost, start) << "one sweep of up to 20 renders found nothing better than the start";
+  EXPECT_LT(cost, start) << "one sweep of up to 23 renders found nothing better than the start";
   for (const std::string& n : one.notes)
     EXPECT_EQ(n.find("max_incidence, min_signal kept"), std::string::npos) << n;
   EXPECT_NE(test::error_of<std::invalid_argument>([&] {

@@ -8,9 +8,12 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <stdexcept>
 #include <string>
+#include <tuple>
 #include <utility>
 
+#include "linksight/sim/lerp_table.hpp"
 #include "linksight/sim/sensor.hpp"
 #include "linksight/sim/sensor_cull.hpp"
 #include "linksight/sim/sensor_noise.hpp"
@@ -385,8 +388,13 @@ TEST(SensorNoise, AnglePowerSetsHowFastTheAngleTermGrows) {
   n.axial.a = kSigma;
   n.axial.c = 0;
   n.axial.k_theta = kSigma * std::sqrt(0.6) / 2;
-  const AxialNoise::Point p = n.axial.point(0.6, theta);
-  EXPECT_EQ(p.q_power, p.q * p.q);
+  // The power 2 as the formula was written before the power existed, to the bit.
+  for (const double z : {0.31, 0.6, 0.97})
+    for (const double th : {0.0, 0.2, 0.7, 1.1, 1.3, 1.5}) {
+      const double q = std::min(th, n.axial.theta_cap) / (std::numbers::pi / 2 - std::min(th, n.axial.theta_cap));
+      EXPECT_EQ(n.axial.sigma(z, th), n.axial.a + n.axial.c * z * z + n.axial.k_theta / std::sqrt(z) * q * q)
+          << "z " << z << ", theta " << th;
+    }
   for (const double power : {1.0, 2.0}) {
     n.axial.angle_power = power;
     SCOPED_TRACE("angle_power " + std::to_string(power));
@@ -408,6 +416,37 @@ TEST(SensorNoise, AnglePowerSetsHowFastTheAngleTermGrows) {
     const double sigma = std::hypot(kSigma, t);
     EXPECT_NEAR(plate_field(n, 0, kBorder, theta).sigma, sigma, kStageSigmaRelTol * sigma);
   }
+}
+
+// The sensor's tables (the depth factor, the angle power): linear between steps, so off
+// the steps within the curvature's bound of the function; at the ends the end's value,
+// beyond them held; NaN reads NaN (before any cast to an index); a range or step it cannot
+// hold refused. q^1.625 over [0, 80 deg] in 4096 steps, as the sensor makes it, is within
+// 1e-4 of std::pow (relative) from 1 to 75 degrees (docs/sensor.md).
+TEST(LerpTable, InterpolatesHoldsItsEndsAndRefusesWhatItCannotHold) {
+  const LerpTable square(0, 2, 4, [](double x) { return x * x; });
+  EXPECT_EQ(square(0.5), 0.25);  // on a step
+  EXPECT_EQ(square(0.75), 0.625);  // halfway between 0.25 and 1
+  EXPECT_EQ(square(2.0), 4.0);
+  EXPECT_EQ(square(3.0), 4.0);
+  EXPECT_EQ(square(-1.0), 0.0);
+  EXPECT_TRUE(std::isnan(square(std::numeric_limits<double>::quiet_NaN())));
+  EXPECT_TRUE(LerpTable().empty());
+  EXPECT_FALSE(square.empty());
+  for (const auto& [lo, hi, steps] : {std::tuple{1.0, 1.0, std::size_t{4}}, std::tuple{0.0, 1.0, std::size_t{0}},
+                                       std::tuple{0.0, 1e-310, std::size_t{4096}}})
+    EXPECT_THROW(LerpTable(lo, hi, steps, [](double x) { return x; }), std::invalid_argument)
+        << lo << " to " << hi << " in " << steps;
+  AxialNoise ax;
+  ax.angle_power = 1.625;
+  const LerpTable power(0, ax.theta_cap, 4096, [&](double th) { return ax.point(0, th).q_power; });
+  constexpr double kTableRelTol = 1e-4;
+  for (double deg = 1; deg <= 75; deg += 0.37) {  // off the steps (80/4096 deg apart)
+    const double th = deg * std::numbers::pi / 180;
+    const double exact = std::pow(th / (std::numbers::pi / 2 - th), 1.625);
+    EXPECT_NEAR(power(th), exact, kTableRelTol * exact) << deg << " deg";
+  }
+  EXPECT_NEAR(power(1.5), ax.point(0, ax.theta_cap).q_power, 1e-12) << "held at the cap";
 }
 
 // The pixel-scale field's depth power (issue 20), on the two-term field above without the

@@ -398,7 +398,8 @@ struct RerenderFitParams {
 /// scale), k_theta, the pixel-scale field's widths along rows and columns,
 /// the low field's widths and share (on a 2 px grid), the pixel-scale field's depth power
 /// (AxialNoise::pixel_depth_power, about 0.65 m and held to the depth bins where `stats`
-/// has 10 windows), dropouts.max_incidence and the hole rate (a scale) re-applies the
+/// has 10 windows), the angle term's power (AxialNoise::angle_power, with k_theta's scale
+/// read at 60 degrees), dropouts.max_incidence and the hole rate (a scale) re-applies the
 /// noise model to the casts and minimizes
 /// target_mismatch(stats, their statistics). Everything else is the one-field fit's. Deterministic: the same frames and params give the same fit for any thread
 /// count. The notes add the start, the final cost and what stays outside the band. Throws

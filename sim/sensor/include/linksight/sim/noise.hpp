@@ -110,7 +110,8 @@ struct AxialNoise {
   /// sigma_z [m] at depth z [m] and incidence theta [rad]: sigma(point(z, theta)).
   [[nodiscard]] double sigma(double z, double theta) const;
   /// What sigma needs of a point, apart from a, c and k_theta: so that a fit can try many
-  /// coefficients on the same points with this one formula.
+  /// coefficients on the same points with this one formula (q_power ties a point to the
+  /// angle_power it was made with).
   struct Point {
     double z = 0;       ///< depth [m]
     double root_z = 0;  ///< sqrt(max(z, 1e-6)) [m^0.5]
@@ -119,6 +120,8 @@ struct AxialNoise {
   };
   [[nodiscard]] Point point(double z, double theta) const;
   [[nodiscard]] double sigma(const Point& p) const {
+    // The power 2 rounds as before the power existed, ((k_theta / root_z) q) q.
+    if (angle_power == 2) return base(p) + k_theta / p.root_z * p.q * p.q;
     return base(p) + k_theta / p.root_z * p.q_power;
   }
   /// sigma without its angle term, a + c z^2 [m]: what the low-frequency field scales when

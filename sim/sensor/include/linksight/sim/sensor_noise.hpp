@@ -9,6 +9,7 @@
 
 #include "linksight/io/depth_png.hpp"
 #include "linksight/sim/camera.hpp"
+#include "linksight/sim/lerp_table.hpp"
 #include "linksight/sim/noise.hpp"
 
 namespace linksight::sim {
@@ -60,18 +61,15 @@ class SensorNoise {
   std::vector<float> rows_kernel_, cols_kernel_, low_rows_kernel_, low_cols_kernel_;
   std::vector<float> white_, blurred_, field_, low_field_;  // their per-frame buffers
   std::vector<float> along_u_;  // the low field's grid rows, interpolated along u
-  // AxialNoise::pixel_depth_factor every 0.5 mm or less over its range, interpolated
-  // linearly (within 1e-6 of it for the preset; std::pow at every pixel cost a quarter of
-  // the frame); empty when the power does nothing (0, or the two fields not apart).
-  std::vector<double> pixel_factor_;
-  double pixel_factor_lo_m_ = 0, pixel_factor_hi_m_ = 0, pixel_factor_per_m_ = 0;
-  // The angle term's q^angle_power (AxialNoise::Point) at kAngleTableSteps steps of theta
-  // over [0, theta_cap], interpolated linearly: within 1e-4 of std::pow below 75 degrees
-  // for a cap of 80 (within 2% at a cap of 89.9, where q grows without bound), where
-  // std::pow at every pixel would cost as the depth factor's did. Empty for the power 2
-  // (q * q, exact, the images from before the power) and without the two fields apart.
-  std::vector<double> angle_power_;
-  double angle_per_rad_ = 0;
+  // AxialNoise::pixel_depth_factor every 0.5 mm or less over its range (within 1e-6 of
+  // it, relative, for the preset); empty when the power does nothing (0, or the two fields
+  // not apart).
+  LerpTable pixel_factor_;
+  // The angle term's q^angle_power (AxialNoise::Point) at 4096 steps of theta over [0,
+  // theta_cap] (within 1e-4 of std::pow, relative, from 1 to 75 degrees for a cap of 80;
+  // within 2% at a cap of 89.9, where q grows without bound). Empty for the power 2 (q * q,
+  // the images from before the power) and without the two fields apart.
+  LerpTable angle_power_;
   std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
   std::vector<std::uint16_t> steps_;          // the reported depth, for edges.drop_steps
   std::vector<std::uint16_t> none_;           // a row of pixels that report nothing
