@@ -53,6 +53,16 @@ struct PlateField {
   std::vector<double> rows, cols;
   std::vector<float> first;
 };
+// Only the axial noise, sigma = a_m + k_theta q^p / sqrt(z) (c = 0; k_theta 0 unless set).
+NoiseParams axial_only(double a_m) {
+  NoiseParams n = NoiseParams::off();
+  n.axial.enabled = true;
+  n.axial.a = a_m;
+  n.axial.c = 0;
+  n.axial.k_theta = 0;
+  return n;
+}
+
 PlateField plate_field(const NoiseParams& n, int lags, int border, double theta = 0, int threads = 2,
                        double z = 0.6) {
   const CameraParams camera;
@@ -268,11 +278,7 @@ TEST(SensorNoise, NoisyBoxGetsTheWholeFramesValuesWhateverTheHitsBox) {
 // `low_cols` [px] and kTwoTermShare of the variance, drawn every `stride` px.
 constexpr double kTwoTermSigma = 0.002, kTwoTermShare = 0.6;  // [m], of the variance
 NoiseParams two_term_noise(double low_rows, double low_cols, int stride = 1) {
-  NoiseParams n = NoiseParams::off();
-  n.axial.enabled = true;
-  n.axial.a = kTwoTermSigma;
-  n.axial.c = 0;
-  n.axial.k_theta = 0;
+  NoiseParams n = axial_only(kTwoTermSigma);
   n.axial.correlation_px = 1.0;
   n.axial.correlation_cols_px = 2.0;
   n.axial.low_share = kTwoTermShare;
@@ -340,10 +346,7 @@ TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
   constexpr double kShare = 0.8, kPixelPx = 1.0, kLowPx = 6.0;
   constexpr double kRhoTol = 0.04;  // as the Matern test's: 4 frames of a smooth field
   const double theta = std::numbers::pi / 3;
-  NoiseParams n = NoiseParams::off();
-  n.axial.enabled = true;
-  n.axial.a = kSigma;
-  n.axial.c = 0;
+  NoiseParams n = axial_only(kSigma);
   // t = k q^2 / sqrt(z) with q = theta / (pi/2 - theta) = 2 at 60 degrees, z = 0.6 m: t = a.
   n.axial.k_theta = kSigma * std::sqrt(0.6) / 4;
   n.axial.correlation_px = kPixelPx;
@@ -383,10 +386,7 @@ TEST(SensorNoise, LowFieldWithoutTheAngleTermLeavesItToThePixelScaleField) {
 TEST(SensorNoise, AnglePowerSetsHowFastTheAngleTermGrows) {
   constexpr double kSigma = 0.002;  // a [m]
   const double theta = std::numbers::pi / 3;
-  NoiseParams n = NoiseParams::off();
-  n.axial.enabled = true;
-  n.axial.a = kSigma;
-  n.axial.c = 0;
+  NoiseParams n = axial_only(kSigma);
   n.axial.k_theta = kSigma * std::sqrt(0.6) / 2;
   // The power 2 as the formula was written before the power existed, to the bit.
   for (const double z : {0.31, 0.6, 0.97})
@@ -560,11 +560,7 @@ TEST(SensorNoise, TwoTermFieldOffIsTheOneFieldModel) {
 TEST(SensorNoise, MaternFieldHasItsSigmaAndEachDirectionsCorrelation) {
   constexpr double kSigma = 0.002;  // [m]
   constexpr double kRhoTol = 0.04;  // seen: within 0.02 at every lag (4 frames of a smooth field)
-  NoiseParams n = NoiseParams::off();
-  n.axial.enabled = true;
-  n.axial.a = kSigma;
-  n.axial.c = 0;
-  n.axial.k_theta = 0;
+  NoiseParams n = axial_only(kSigma);
   n.axial.kernel = AxialKernel::matern52;
   n.axial.correlation_px = 4.0;
   n.axial.correlation_cols_px = 7.0;
