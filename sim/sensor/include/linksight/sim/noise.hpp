@@ -47,8 +47,9 @@ struct AxialNoise {
   /// The angle term is evaluated at min(theta, theta_cap) so it stays finite [rad].
   double theta_cap = 80.0 * std::numbers::pi / 180.0;
   /// The angle term's power of theta / (pi/2 - theta): 2 is Nguyen et al.'s; below 2 it
-  /// grows more slowly towards grazing incidence (issue 20: the SR305's sigma grows about
-  /// 1.6x from the 45-60 deg bin to the 60-75 deg one, the power 2 gives 2.2x).
+  /// grows more slowly towards grazing incidence (issue 20: the SR305's plane-fit sigma
+  /// grows 1.7x and 1.8x from 30-45 to 45-60 to 60-75 deg, where q^2 grows 3.8x and 4.6x
+  /// between the bins' middles; docs/sensor.md, "The angle term's power").
   double angle_power = 2;
   /// Spatial correlation: the unit normal field is a white field blurred by a Gaussian of
   /// this standard deviation [px] and rescaled to unit variance, so neighbours at lag L
