@@ -175,8 +175,10 @@ void Sensor::Impl::cast(const FramePlan& f, DepthFrame& out) {
       bool need[2] = {true, any_static};
       if (p.cull) {
         const Eigen::Vector3f q = R_CW_f * (p_W - P_Wf);  // p in the projector's frame
-        need[0] = std::any_of(f.moving_casters.begin(), f.moving_casters.end(),
-                              [&](const ShadowCaster& c) { return c.may_block(q); });
+        // Loops, not std::any_of: GCC left that call's lambda out of line (callgrind).
+        need[0] = false;
+        for (std::size_t k = 0; k < f.moving_casters.size() && !need[0]; ++k)
+          need[0] = f.moving_casters[k].may_block(q);
         need[1] = false;
         for (std::size_t k = 0; k < static_casters.size() && !need[1]; ++k)
           need[1] = !(!moving && k == geom && static_convex[k]) && static_casters[k].may_block(q);
