@@ -29,9 +29,8 @@ using detail::uniform;
 // within 1e-6 (relative) of the power law for the preset's power over 0.5-0.9 m, about
 // 1e-5 for a power of 4 from 0.2 m.
 constexpr double kPixelFactorStep_m = 0.0005;
-// The angle term's table (SensorNoise::angle_power_): steps of theta over [0, theta_cap],
-// for a cap of at least kMinAngleTableCap [rad].
-constexpr std::size_t kAngleTableSteps = 4096;
+// The angle term's table (SensorNoise::angle_power_) is made for a cap of at least this
+// [rad].
 constexpr double kMinAngleTableCap = 1e-6;
 
 // The taps f(i), i = -R..R, scaled to sum k^2 = 1: one 1-D pass keeps unit white noise at

@@ -421,8 +421,8 @@ TEST(SensorNoise, AnglePowerSetsHowFastTheAngleTermGrows) {
 // The sensor's tables (the depth factor, the angle power): linear between steps, so off
 // the steps within the curvature's bound of the function; at the ends the end's value,
 // beyond them held; NaN reads NaN (before any cast to an index); a range or step it cannot
-// hold refused. q^1.625 over [0, 80 deg] in 4096 steps, as the sensor makes it, is within
-// 1e-4 of std::pow (relative) from 1 to 75 degrees (docs/sensor.md).
+// hold refused. q^1.625 over [0, 80 deg] in the sensor's steps, as the sensor makes it, is
+// within 1e-4 of std::pow (relative) from 1 to 75 degrees (docs/sensor.md).
 TEST(LerpTable, InterpolatesHoldsItsEndsAndRefusesWhatItCannotHold) {
   const LerpTable square(0, 2, 4, [](double x) { return x * x; });
   EXPECT_EQ(square(0.5), 0.25);  // on a step
@@ -439,9 +439,10 @@ TEST(LerpTable, InterpolatesHoldsItsEndsAndRefusesWhatItCannotHold) {
         << lo << " to " << hi << " in " << steps;
   AxialNoise ax;
   ax.angle_power = 1.625;
-  const LerpTable power(0, ax.theta_cap, 4096, [&](double th) { return ax.point(0, th).q_power; });
+  const LerpTable power(0, ax.theta_cap, SensorNoise::kAngleTableSteps,
+                        [&](double th) { return ax.point(0, th).q_power; });
   constexpr double kTableRelTol = 1e-4;
-  for (double deg = 1; deg <= 75; deg += 0.37) {  // off the steps (80/4096 deg apart)
+  for (double deg = 1; deg <= 75; deg += 0.37) {  // off the steps (80 deg / kAngleTableSteps apart)
     const double th = deg * std::numbers::pi / 180;
     const double exact = std::pow(th / (std::numbers::pi / 2 - th), 1.625);
     EXPECT_NEAR(power(th), exact, kTableRelTol * exact) << deg << " deg";

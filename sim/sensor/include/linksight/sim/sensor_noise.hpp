@@ -53,6 +53,10 @@ class SensorNoise {
   void apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t frame, int threads,
              io::DepthImage& depth, std::vector<float>& depth_m);
 
+  /// Steps of theta over [0, theta_cap] in the angle term's table (a power other than 2,
+  /// the two fields apart).
+  static constexpr std::size_t kAngleTableSteps = 4096;
+
  private:
   NoiseParams noise_;
   CameraParams camera_;
@@ -65,7 +69,7 @@ class SensorNoise {
   // it, relative, for the preset); empty when the power does nothing (0, or the two fields
   // not apart).
   LerpTable pixel_factor_;
-  // The angle term's q^angle_power (AxialNoise::Point) at 4096 steps of theta over [0,
+  // The angle term's q^angle_power (AxialNoise::Point) at kAngleTableSteps of theta over [0,
   // theta_cap] (within 1e-4 of std::pow, relative, from 1 to 75 degrees for a cap of 80;
   // within 2% at a cap of 89.9, where q grows without bound). Empty for the power 2 (q * q,
   // the images from before the power) and without the two fields apart.
