@@ -1057,12 +1057,11 @@ NoiseFit fit_noise(const DepthStats& s, const NoiseParams& start, const DepthSta
   // The plane fit reads sigma * sqrt(variance_factor): undo it.
   const double unbias = 1.0 / std::sqrt(variance_factor);
   // Eq. of AxialNoise: sigma = a + c z^2 + k_theta g(z, theta), g = (theta / (pi/2 -
-  // theta))^angle_power / sqrt(z), the start's power. Fitted jointly to the depth bins (windows under
-  // depth_bin_max_angle) and the angle bins with 10 windows or more, each bin's model being
-  // the median of the model over its own windows: even under 30 degrees the angle term is
-  // not negligible on real frames, and the depth bins hold different mixes of angles (a
-  // torso face-on, an arm oblique), which a fit of depth alone reads as a sigma that is
-  // not monotone in depth.
+  // theta))^angle_power / sqrt(z), the start's power. Fitted jointly to the depth bins (windows
+  // under depth_bin_max_angle) and the angle bins with 10 windows or more, each bin's model being
+  // the median of the model over its own windows: even under 30 degrees the angle term is not
+  // negligible on real frames, and the depth bins hold different mixes of angles (a torso face-on,
+  // an arm oblique), which a fit of depth alone reads as a sigma that is not monotone in depth.
   // The model is AxialNoise::sigma itself, on points prepared once.
   struct Bin {
     std::vector<AxialNoise::Point> points;

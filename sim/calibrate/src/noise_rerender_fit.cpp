@@ -340,14 +340,16 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
       line, sizeof line,
       "two-scale structure by re-rendering %zu frames, %d draw%s each (%d renders, %d "
       "sweeps): axial a, c "
-      "x%.3g and k_theta x%.3g (at 60 deg) of the one-field fit's with the angle power %.3g, pixel-scale field %.2f x %.2f px "
+      "x%.3g and k_theta x%.3g (at 60 deg) of the one-field fit's with the angle power %.3g, "
+      "pixel-scale field %.2f x %.2f px "
       "with the angle term, low-frequency field %.2f x %.2f px with %.4f of a + c z^2, "
       "pixel-scale share x (z / %.2f m)^%.3g over %.2f-%.2f m, "
       "dropouts.max_incidence %.1f deg, hole rate x%.3g; target mismatch %.3g (start "
       "%.3g) over the issue-20 statistics",
       frames.size(), params.draws, params.draws == 1 ? "" : "s", evaluations, params.sweeps,
       x[0], x[1], x[10], ax.correlation_px, ax.correlation_cols_px, ax.low_rows_px, ax.low_cols_px,
-      ax.low_share, ax.pixel_depth_ref_m, x[9], ax.pixel_depth_min_m, ax.pixel_depth_max_m, x[7], x[8], best.cost, start_cost);
+      ax.low_share, ax.pixel_depth_ref_m, x[9], ax.pixel_depth_min_m, ax.pixel_depth_max_m, x[7],
+      x[8], best.cost, start_cost);
   fit.notes.emplace_back(line);
   std::string out = "outside 0.8-1.25 on the fitted frames:";
   for (const std::string& o : best.outside) out += " " + o + ";";

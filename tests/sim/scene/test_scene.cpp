@@ -148,7 +148,8 @@ TEST_F(BadScene, SensorKeysNameLineAndKey) {
   // The reader and validate() share one range: what the file may say, code may set.
   has("noise:\n  axial: {a_m: 0.5}\n", ":2: noise.axial.a_m = 0.5: must be in [0, 0.1]");
   has("noise:\n  axial: {theta_cap_deg: 90}\n", ":2: noise.axial.theta_cap_deg = 90: must be in [0, 89.9]");
-  has("noise:\n  axial: {angle_power: 0.1}\n", ":2: noise.axial.angle_power = 0.1: must be in [0.5, 4]");
+  has("noise:\n  axial: {angle_power: 0.1}\n",
+      ":2: noise.axial.angle_power = 0.1: must be in [0.5, 4]");
   has("noise:\n  dropouts: {hole_median_px: 5, hole_p90_px: 3}\n",
       ":2: noise.dropouts.hole_p90_px = 3: must be >= hole_median_px (5)");
   has("noise:\n  axial: {sigma: 1}\n", "noise.axial.sigma: unknown key");

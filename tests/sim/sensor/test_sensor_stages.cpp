@@ -389,10 +389,12 @@ TEST(SensorNoise, AnglePowerSetsHowFastTheAngleTermGrows) {
   NoiseParams n = axial_only(kSigma);
   n.axial.k_theta = kSigma * std::sqrt(0.6) / 2;
   // The power 2 as the formula was written before the power existed, to the bit.
+  const AxialNoise& ax = n.axial;
   for (const double z : {0.31, 0.6, 0.97})
     for (const double th : {0.0, 0.2, 0.7, 1.1, 1.3, 1.5}) {
-      const double q = std::min(th, n.axial.theta_cap) / (std::numbers::pi / 2 - std::min(th, n.axial.theta_cap));
-      EXPECT_EQ(n.axial.sigma(z, th), n.axial.a + n.axial.c * z * z + n.axial.k_theta / std::sqrt(z) * q * q)
+      const double capped = std::min(th, ax.theta_cap);
+      const double q = capped / (std::numbers::pi / 2 - capped);
+      EXPECT_EQ(ax.sigma(z, th), ax.a + ax.c * z * z + ax.k_theta / std::sqrt(z) * q * q)
           << "z " << z << ", theta " << th;
     }
   for (const double power : {1.0, 2.0}) {
@@ -433,8 +435,9 @@ TEST(LerpTable, InterpolatesHoldsItsEndsAndRefusesWhatItCannotHold) {
   EXPECT_TRUE(std::isnan(square(std::numeric_limits<double>::quiet_NaN())));
   EXPECT_TRUE(LerpTable().empty());
   EXPECT_FALSE(square.empty());
-  for (const auto& [lo, hi, steps] : {std::tuple{1.0, 1.0, std::size_t{4}}, std::tuple{0.0, 1.0, std::size_t{0}},
-                                       std::tuple{0.0, 1e-310, std::size_t{4096}}})
+  for (const auto& [lo, hi, steps] :
+       {std::tuple{1.0, 1.0, std::size_t{4}}, std::tuple{0.0, 1.0, std::size_t{0}},
+        std::tuple{0.0, 1e-310, std::size_t{4096}}})
     EXPECT_THROW(LerpTable(lo, hi, steps, [](double x) { return x; }), std::invalid_argument)
         << lo << " to " << hi << " in " << steps;
   AxialNoise ax;

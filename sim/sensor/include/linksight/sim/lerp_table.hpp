@@ -25,7 +25,8 @@ class LerpTable {
       throw std::invalid_argument("LerpTable: needs hi > lo, steps >= 1 and a normal step");
     per_ = 1 / step;
     values_.resize(steps + 2);
-    for (std::size_t i = 0; i < values_.size(); ++i) values_[i] = f(lo + static_cast<double>(i) * step);
+    for (std::size_t i = 0; i < values_.size(); ++i)
+      values_[i] = f(lo + static_cast<double>(i) * step);
   }
   /// Whether it holds a function (a default-constructed table does not).
   [[nodiscard]] bool empty() const { return values_.empty(); }

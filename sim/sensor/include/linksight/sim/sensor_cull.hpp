@@ -49,8 +49,9 @@ struct ShadowCaster {
   [[nodiscard]] static ShadowCaster of(const Eigen::AlignedBox3d& box_W,
                                        const Eigen::Matrix3d& R_WP, const Eigen::Vector3d& p_WP);
   /// Whether a shadow ray from q (its start in the projector's frame) may be blocked.
-  // Forced inline: once sensor_noise.hpp grew (b198ad8) GCC left it out of the cast loop,
-  // 8% more instructions there (callgrind; bench/README.md).
+  // Forced inline: GCC's inlining in the cast loop moves with the other files of sim/sensor's
+  // unity unit; after b198ad8 it left this out, 6% more instructions in the cast's own code
+  // (callgrind; bench/README.md).
   [[nodiscard, gnu::always_inline]] bool may_block(const Eigen::Vector3f& q) const {
     if (everywhere) return true;
     if (q.squaredNorm() <= dist2) return false;

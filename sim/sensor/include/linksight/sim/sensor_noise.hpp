@@ -3,6 +3,7 @@
 /// images, with no ray casting. Sensor::render calls it on what Embree cast; calibration
 /// or a test can call it on any surface (a plane, a recording's fitted surface).
 
+#include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -54,7 +55,7 @@ class SensorNoise {
              io::DepthImage& depth, std::vector<float>& depth_m);
 
   /// Steps of theta over [0, theta_cap] in the angle term's table (a power other than 2,
-  /// the two fields apart).
+  /// the two fields apart, a cap of at least a microradian).
   static constexpr std::size_t kAngleTableSteps = 4096;
 
  private:
@@ -69,10 +70,10 @@ class SensorNoise {
   // it, relative, for the preset); empty when the power does nothing (0, or the two fields
   // not apart).
   LerpTable pixel_factor_;
-  // The angle term's q^angle_power (AxialNoise::Point) at kAngleTableSteps of theta over [0,
-  // theta_cap] (within 1e-4 of std::pow, relative, from 1 to 75 degrees for a cap of 80;
-  // within 2% at a cap of 89.9, where q grows without bound). Empty for the power 2 (q * q,
-  // the images from before the power) and without the two fields apart.
+  // The angle term's q^angle_power (AxialNoise::Point) at kAngleTableSteps steps of theta over [0,
+  // theta_cap] (within 1e-4 of std::pow, relative, from 1 to 75 degrees for a cap of 80; within 2%
+  // at a cap of 89.9, where q grows without bound). Empty for the power 2 (q * q, the images from
+  // before the power) and without the two fields apart.
   LerpTable angle_power_;
   std::vector<std::uint8_t> hole_;            // per pixel: inside a dropout hole
   std::vector<std::uint16_t> steps_;          // the reported depth, for edges.drop_steps
