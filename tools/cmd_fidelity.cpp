@@ -62,9 +62,14 @@ Measured measure(const std::string& dir, const std::string& intrinsics, const ch
     m.images =
         take_half(read_depth_frames(frames.string(), m.K, k.string(), "fidelity"), m.K, half, dir);
     try {
-      if (rerender != nullptr)
-        m.images = sim::rerender_surfaces(m.images, m.K, *rerender, sim::kCompareSeed, draws);
-      m.stats = sim::depth_stats(m.images, m.K);
+      if (rerender != nullptr) {
+        // Holes are counted where the camera saw a surface (depth_stats' `seen`).
+        const std::vector<io::DepthImage> seen = std::move(m.images);
+        m.images = sim::rerender_surfaces(seen, m.K, *rerender, sim::kCompareSeed, draws);
+        m.stats = sim::depth_stats(m.images, m.K, {}, &seen);
+      } else {
+        m.stats = sim::depth_stats(m.images, m.K);
+      }
       return m;
     } catch (const std::invalid_argument& e) {
       throw io::InputError(dir + ": " + e.what());

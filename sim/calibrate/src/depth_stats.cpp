@@ -243,8 +243,10 @@ class Frame {
   // Interior holes: invalid 4-connected regions with nothing else invalid within 2 px
   // (not touching the border, a band or another hole: jitter leaves stray pixels along
   // shadow edges), enclosed by valid pixels of one surface (their depths within the edge
-  // jump).
-  void holes(std::vector<int>& sizes) const {
+  // jump). With `within`, a hole counts only if every pixel of it is set there; `mark`
+  // gets every counted hole's pixels set.
+  void holes(std::vector<int>& sizes, const std::vector<std::uint8_t>* within = nullptr,
+             std::vector<std::uint8_t>* mark = nullptr) const {
     std::vector<int> comp(img_.data.size(), -1);
     std::vector<int> stack, members;
     int id = 0;
@@ -286,7 +288,14 @@ class Frame {
             }
         }
         ++id;
-        if (isolated && size <= p_.max_hole_px && hi - lo <= p_.edge_jump) sizes.push_back(size);
+        if (!isolated || size > p_.max_hole_px || hi - lo > p_.edge_jump) continue;
+        if (within && !std::all_of(members.begin(), members.end(), [&](int k) {
+              return (*within)[static_cast<std::size_t>(k)] != 0;
+            }))
+          continue;
+        sizes.push_back(size);
+        if (mark)
+          for (const int k : members) (*mark)[static_cast<std::size_t>(k)] = 1;
       }
   }
 
@@ -375,9 +384,29 @@ void DepthStatsParams::validate() const {
 }
 
 DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intrinsics& K,
-                       const DepthStatsParams& p) {
+                       const DepthStatsParams& p, const std::vector<io::DepthImage>* seen) {
   p.validate();
   if (frames.empty()) throw std::invalid_argument("depth statistics: no frames");
+  // Where each seen frame shows a surface: its valid pixels and its own interior holes.
+  std::vector<std::vector<std::uint8_t>> surface_seen;
+  if (seen) {
+    if (seen->empty() || frames.size() % seen->size() != 0)
+      throw std::invalid_argument("depth statistics: " + std::to_string(frames.size()) +
+                                  " images are not draws of " + std::to_string(seen->size()) +
+                                  " seen frames");
+    for (std::size_t f = 0; f < seen->size(); ++f) {
+      const io::DepthImage& img = (*seen)[f];
+      if (img.width != K.width || img.height != K.height)
+        throw std::invalid_argument("seen frame " + std::to_string(f) + " is " +
+                                    std::to_string(img.width) + "x" + std::to_string(img.height) +
+                                    ", the intrinsics say " + std::to_string(K.width) + "x" +
+                                    std::to_string(K.height));
+      std::vector<std::uint8_t>& mask = surface_seen.emplace_back(img.data.size());
+      for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = img.data[i] != 0;
+      std::vector<int> unused;
+      Frame(img, K, p).holes(unused, nullptr, &mask);
+    }
+  }
   DepthStats s;
   s.frames = static_cast<int>(frames.size());
   s.window = p.window;
@@ -429,7 +458,7 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
     }
     fr.edges(edges, flying, lone, s.band_neighbours, positions, s.band_side_pixels,
              s.band_side_flying);
-    fr.holes(s.hole_sizes);
+    fr.holes(s.hole_sizes, seen ? &surface_seen[f % seen->size()] : nullptr);
   }
   if (s.valid_px == 0) throw std::invalid_argument("depth statistics: no valid pixel in any frame");
   s.windows = static_cast<int>(s.samples.size());

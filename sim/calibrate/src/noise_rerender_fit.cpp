@@ -111,7 +111,8 @@ std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& re
   const std::size_t draws = sim.size() / n;
   std::vector<TargetSpread> out;
   for (const TargetStatistic& t :
-       target_mismatch(depth_stats(real, intrinsics, params), depth_stats(sim, intrinsics, params))
+       target_mismatch(depth_stats(real, intrinsics, params),
+                       depth_stats(sim, intrinsics, params, &real))
            .compared)
     out.push_back({t, 0.0});
   // Consecutive frames in g groups (frame f in group f g / n): one frame each up to
@@ -131,7 +132,8 @@ std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& re
         if (group(f) != i) s.push_back(sim[d * n + f]);
     TargetMismatch m;
     try {
-      m = target_mismatch(depth_stats(r, intrinsics, params), depth_stats(s, intrinsics, params));
+      m = target_mismatch(depth_stats(r, intrinsics, params),
+                          depth_stats(s, intrinsics, params, &r));
     } catch (const std::invalid_argument&) {
       continue;  // unreadable without this group: every statistic's se is NaN
     }
@@ -184,7 +186,9 @@ struct Cast {
 // pixel-scale widths along rows and columns [px], the low field's [px] and share,
 // dropouts.max_incidence [deg], and the hole rate's scale over the one-field fit's (which
 // counts every interior hole as a drawn one; the steeper incidence cut-off leaves holes of
-// its own, about 3.6 a frame on the shared frames), and the pixel-scale field's depth
+// its own, about 1.3 a frame on the shared frames where the camera saw a surface, and
+// 2.4 more on what the rebuilt surfaces fill, which depth_stats' `seen` leaves out), and
+// the pixel-scale field's depth
 // power (the quadratic-fit sigma by depth pins it: the camera's grows faster with depth
 // than a + c z^2; docs/sensor.md, "The pixel-scale noise by depth"), and the angle term's
 // power (the sigma by angle pins it: the camera's grows more slowly towards grazing
@@ -301,7 +305,7 @@ NoiseFit fit_noise_rerendered(const std::vector<io::DepthImage>& frames, const i
           const std::size_t k = draw_index(n, d, f);
           noise.apply(casts[f].input(), params.seed, k, params.threads, images[k], depth_m);
         }
-      return target_mismatch(stats, depth_stats(images, K));
+      return target_mismatch(stats, depth_stats(images, K, {}, &frames));
     } catch (const std::invalid_argument&) {
       // Out of the model's ranges, or too few windows left: not a candidate.
       TargetMismatch none;

@@ -314,7 +314,7 @@ TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
   for (const bool two_scale : {true, false}) {
     SCOPED_TRACE(two_scale ? "sr300" : "sr300-one-field");
     const NoiseParams preset = two_scale ? NoiseParams::sr300() : NoiseParams::sr300_one_field();
-    expect_fidelity(r, depth_stats(rerender_surfaces(real, K, preset, 11), K));
+    expect_fidelity(r, depth_stats(rerender_surfaces(real, K, preset, 11), K, {}, &real));
   }
 }
 
@@ -366,7 +366,7 @@ HeldOutStats held_out(const std::vector<io::DepthImage>& all, const io::Intrinsi
   // candidate over (for either structure), and not the draws it read (kCompareSeed).
   const std::vector<io::DepthImage> sim_images =
       rerender_surfaces(test_frames, K, fitted, kCompareSeed, RerenderFitParams{}.draws);
-  out.sim = depth_stats(sim_images, K);
+  out.sim = depth_stats(sim_images, K, {}, &test_frames);
   if (jackknife) out.spread = target_jackknife(test_frames, sim_images, K);
   return out;
 }
@@ -750,7 +750,8 @@ TEST(DepthStats, TargetJackknifeLeavesOneFrameOutOnBothSides) {
   std::vector<io::DepthImage> swapped = real;
   swapped[0] = real[1];
   const std::vector<TargetSpread> spread = target_jackknife(real, swapped, K);
-  const TargetMismatch all = target_mismatch(depth_stats(real, K), depth_stats(swapped, K));
+  const TargetMismatch all =
+      target_mismatch(depth_stats(real, K), depth_stats(swapped, K, {}, &real));
   ASSERT_EQ(spread.size(), all.compared.size());
   int spreading = 0;
   for (std::size_t k = 0; k < spread.size(); ++k) {
@@ -773,7 +774,7 @@ TEST(DepthStats, TargetJackknifeLeavesOneFrameOutOnBothSides) {
       std::vector<io::DepthImage> r, s;
       for (std::size_t f = 0; f < real.size(); ++f)
         if (f / per_group != i) r.push_back(real[f]), s.push_back(swapped[f]);
-      v.push_back(depth_stats(s, K).holes_per_frame / depth_stats(r, K).holes_per_frame);
+      v.push_back(depth_stats(s, K, {}, &r).holes_per_frame / depth_stats(r, K).holes_per_frame);
     }
     double mean = 0, ss = 0;
     for (const double x : v) mean += x / static_cast<double>(v.size());
@@ -1402,6 +1403,50 @@ TEST(DepthStats, FlyingPixelsBesideTheBandsCountEachPixelOnce) {
   EXPECT_DOUBLE_EQ(s.flying_band_rate, 1.0 / 6);
   EXPECT_EQ(s.band_neighbours, 4 * 225);
   EXPECT_DOUBLE_EQ(s.flying_rate, 0.25);
+}
+
+// Holes of a re-render, counted where the camera saw a surface. The camera's frame: a
+// wall with one 2 x 2 hole at (60, 60) and an invalid strip (u 200-209, every row: not a
+// hole, it reaches the border). The re-render fills the strip and has three 2 x 2 holes:
+// on the camera's hole, on the wall the camera saw, and on the strip's fill. Read with the
+// camera's frame as `seen`, the last is on no surface the camera saw and is not counted;
+// on its own, all three are. Each pixel of a hole must be seen: one astride the strip's
+// edge is not counted either. Two draws of the frame pair with it as rerender_surfaces
+// orders them.
+TEST(DepthStats, ReRenderedHolesCountWhereTheCameraSawASurface) {
+  io::Intrinsics K;
+  const io::DepthImage flat = wall(K, [](int, int) { return 0.0; });
+  const auto hole = [&](io::DepthImage& img, int u0, int v0) {
+    for (int v = v0; v < v0 + 2; ++v)
+      for (int u = u0; u < u0 + 2; ++u) img.data[static_cast<std::size_t>(v) * 300 + u] = 0;
+  };
+  io::DepthImage camera = flat;
+  hole(camera, 60, 60);
+  for (int v = 0; v < 225; ++v)
+    for (int u = 200; u < 210; ++u) camera.data[static_cast<std::size_t>(v) * 300 + u] = 0;
+  io::DepthImage rendered = flat;
+  hole(rendered, 60, 60);
+  hole(rendered, 100, 150);
+  hole(rendered, 204, 100);
+  const std::vector<io::DepthImage> seen{camera};
+  EXPECT_EQ(depth_stats({camera}, K).holes_per_frame, 1.0);
+  EXPECT_EQ(depth_stats({rendered}, K).holes_per_frame, 3.0);
+  EXPECT_EQ(depth_stats({rendered}, K, {}, &seen).holes_per_frame, 2.0);
+  EXPECT_EQ(depth_stats({rendered, rendered}, K, {}, &seen).holes_per_frame, 2.0);
+  io::DepthImage astride = flat;
+  hole(astride, 199, 100);
+  EXPECT_EQ(depth_stats({astride}, K).holes_per_frame, 1.0);
+  EXPECT_EQ(depth_stats({astride}, K, {}, &seen).holes_per_frame, 0.0);
+  // The rest of the statistics do not read `seen`.
+  EXPECT_EQ(depth_stats({rendered}, K, {}, &seen).windows, depth_stats({rendered}, K).windows);
+  const std::vector<io::DepthImage> none;
+  EXPECT_EQ(test::error_of<std::invalid_argument>(
+                [&] { (void)depth_stats({rendered}, K, {}, &none); }),
+            "depth statistics: 1 images are not draws of 0 seen frames");
+  const std::vector<io::DepthImage> two{camera, camera};
+  EXPECT_EQ(test::error_of<std::invalid_argument>(
+                [&] { (void)depth_stats({rendered}, K, {}, &two); }),
+            "depth statistics: 1 images are not draws of 2 seen frames");
 }
 
 TEST(DepthStats, BadInputIsNamed) {

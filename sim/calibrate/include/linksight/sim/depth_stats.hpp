@@ -163,11 +163,19 @@ struct DepthStats {
 }
 
 /// Statistics of `frames` (raw depth, 0 = invalid) with `intrinsics` (size and depth unit
-/// must match). Throws std::invalid_argument naming the problem: no frame, a size that
-/// differs from the intrinsics, no valid pixel, or too few flat windows to estimate sigma.
+/// must match). With `seen`, `frames` re-render those frames (rerender_surfaces' order:
+/// image i is a draw of seen[i mod seen.size()]), and a hole counts only where the seen
+/// frame shows a surface: each of its pixels valid there or in one of that frame's own
+/// interior holes. The re-rendered surfaces go on over what the camera left (its bands,
+/// the gaps between fingers, up to DepthSurfaceParams::max_gap_px), and the model's holes
+/// on those fills have no counterpart in the camera's frame (docs/sensor.md). Throws
+/// std::invalid_argument naming the problem: no frame, a size that differs from the
+/// intrinsics, no valid pixel, too few flat windows to estimate sigma, or a `seen` that
+/// is empty or whose size does not divide the frames'.
 [[nodiscard]] DepthStats depth_stats(const std::vector<io::DepthImage>& frames,
                                      const io::Intrinsics& intrinsics,
-                                     const DepthStatsParams& params = {});
+                                     const DepthStatsParams& params = {},
+                                     const std::vector<io::DepthImage>* seen = nullptr);
 
 /// A half of a recording, for validation that is not in-sample (issue 20, part 3): fit on
 /// one half, compare on the other. `even` / `odd`: the frames at even / odd positions of
