@@ -63,7 +63,8 @@ Measured measure(const std::string& dir, const std::string& intrinsics, const ch
         take_half(read_depth_frames(frames.string(), m.K, k.string(), "fidelity"), m.K, half, dir);
     try {
       if (rerender != nullptr) {
-        // Holes are counted where the camera saw a surface (depth_stats' `seen`).
+        // The re-render fills the camera's bands and gaps, and holes the model cuts there
+        // have no counterpart in the camera's frame (depth_stats' `seen`).
         const std::vector<io::DepthImage> seen = std::move(m.images);
         m.images = sim::rerender_surfaces(seen, m.K, *rerender, sim::kCompareSeed, draws);
         m.stats = sim::depth_stats(m.images, m.K, {}, &seen);
@@ -183,6 +184,9 @@ int run_fidelity(const FidelityOptions& o) {
     j_rows.push_back({{"statistic", r.name}, {"real", json_number(r.real)},
                       {"sim", json_number(r.sim)}, {"ratio", json_number(ratio)}});
   }
+  if (o.rerender)
+    text << "(re-rendered holes count where the real frame shows a surface: docs/sensor.md, "
+            "Holes)\n";
   // The targets with their spread over the frames: only where each simulated
   // image is a draw of one real frame (--rerender), so that a frame can leave both sides.
   nlohmann::json j_targets = nullptr;

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <regex>
 #include <functional>
@@ -1790,6 +1791,15 @@ background:
   EXPECT_GT(holes["se"].get<double>(), 0.0);
   EXPECT_LT(holes["se"].get<double>(), 0.5);
   EXPECT_NE(r.out.find("jackknife over 11 frames"), std::string::npos) << r.out;
+  // A re-render's holes are counted where the camera saw a surface, and the report says so.
+  const std::string holes_rule = "re-rendered holes count where the real frame shows a surface";
+  EXPECT_NE(r.out.find(holes_rule), std::string::npos) << r.out;
+  {
+    std::ifstream sim_text(out / "fidelity.txt");
+    const std::string text((std::istreambuf_iterator<char>(sim_text)), {});
+    ASSERT_FALSE(text.empty());
+    EXPECT_EQ(text.find(holes_rule), std::string::npos) << text;
+  }
   // One draw reads other figures than the default's pooled draws.
   const fs::path out3 = dir / "rerender1";
   r = run("fidelity --real " + real.string() + " --rerender --draws 1 --no-figures --out " +

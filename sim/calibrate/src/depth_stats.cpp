@@ -243,8 +243,9 @@ class Frame {
   // Interior holes: invalid 4-connected regions with nothing else invalid within 2 px
   // (not touching the border, a band or another hole: jitter leaves stray pixels along
   // shadow edges), enclosed by valid pixels of one surface (their depths within the edge
-  // jump). With `within`, a hole counts only if every pixel of it is set there; `mark`
-  // gets every counted hole's pixels set.
+  // jump). With `within`, a hole counts only if every pixel of it and within 2 px of it is
+  // set there (so that the other frame could have counted a hole there by the same rule);
+  // `mark` gets every counted hole's pixels set.
   void holes(std::vector<int>& sizes, const std::vector<std::uint8_t>* within = nullptr,
              std::vector<std::uint8_t>* mark = nullptr) const {
     std::vector<int> comp(img_.data.size(), -1);
@@ -284,15 +285,12 @@ class Frame {
             for (int du = -2; du <= 2 && isolated; ++du) {
               const int uu = u + du, vv = v + dv;
               isolated = uu >= 0 && vv >= 0 && uu < W_ && vv < H_ &&
-                         (valid(uu, vv) || comp[idx(uu, vv)] == id);
+                         (valid(uu, vv) || comp[idx(uu, vv)] == id) &&
+                         (within == nullptr || (*within)[idx(uu, vv)] != 0);
             }
         }
         ++id;
         if (!isolated || size > p_.max_hole_px || hi - lo > p_.edge_jump) continue;
-        if (within && !std::all_of(members.begin(), members.end(), [&](int k) {
-              return (*within)[static_cast<std::size_t>(k)] != 0;
-            }))
-          continue;
         sizes.push_back(size);
         if (mark)
           for (const int k : members) (*mark)[static_cast<std::size_t>(k)] = 1;
@@ -390,10 +388,11 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   // Where each seen frame shows a surface: its valid pixels and its own interior holes.
   std::vector<std::vector<std::uint8_t>> surface_seen;
   if (seen) {
-    if (seen->empty() || frames.size() % seen->size() != 0)
+    if (seen->empty()) throw std::invalid_argument("depth statistics: no seen frame");
+    if (frames.size() % seen->size() != 0)
       throw std::invalid_argument("depth statistics: " + std::to_string(frames.size()) +
-                                  " images are not draws of " + std::to_string(seen->size()) +
-                                  " seen frames");
+                                  " images are not a whole number of draws of " +
+                                  std::to_string(seen->size()) + " seen frames");
     for (std::size_t f = 0; f < seen->size(); ++f) {
       const io::DepthImage& img = (*seen)[f];
       if (img.width != K.width || img.height != K.height)

@@ -186,11 +186,11 @@ struct Cast {
 // pixel-scale widths along rows and columns [px], the low field's [px] and share,
 // dropouts.max_incidence [deg], and the hole rate's scale over the one-field fit's (which
 // counts every interior hole as a drawn one; the steeper incidence cut-off leaves holes of
-// its own, about 1.3 a frame on the shared frames where the camera saw a surface, and
-// 2.4 more on what the rebuilt surfaces fill, which depth_stats' `seen` leaves out), and
-// the pixel-scale field's depth
-// power (the quadratic-fit sigma by depth pins it: the camera's grows faster with depth
-// than a + c z^2; docs/sensor.md, "The pixel-scale noise by depth"), and the angle term's
+// its own, most of them on what the rebuilt surfaces fill, which depth_stats' `seen`
+// leaves out: docs/sensor.md, "Holes counted where the camera saw a surface"), and the
+// pixel-scale field's depth power (the quadratic-fit sigma by depth pins it: the camera's
+// grows faster with depth than a + c z^2; docs/sensor.md, "The pixel-scale noise by
+// depth"), and the angle term's
 // power (the sigma by angle pins it: the camera's grows more slowly towards grazing
 // incidence than Nguyen et al.'s square; docs/sensor.md, "The angle term's power").
 constexpr int kParams = 11;

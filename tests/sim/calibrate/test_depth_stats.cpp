@@ -945,13 +945,15 @@ TEST(DepthStats, RerenderedFitReadsWhatRerenderSurfacesReturns) {
   const NoiseFit fit = fit_noise_rerendered(t.frames, t.K, t.stats, nullptr, NoiseParams::sr300_one_field(), p);
   const double cost = noted_mismatch(fit).first;
   ASSERT_GT(cost, 0);
-  const double read =
-      target_mismatch(t.stats, depth_stats(rerender_surfaces(t.frames, t.K, fit.params, p.seed, 2), t.K)).cost;
+  // Read as the fit reads: holes where the camera saw a surface.
+  const std::vector<io::DepthImage> drawn =
+      rerender_surfaces(t.frames, t.K, fit.params, p.seed, 2);
+  const double read = target_mismatch(t.stats, depth_stats(drawn, t.K, {}, &t.frames)).cost;
   EXPECT_NEAR(read, cost, 0.005 * cost);  // the note gives 3 digits
   // Another seed's draws read differently: the comparison is not the fit's draws again.
-  const double other =
-      target_mismatch(t.stats, depth_stats(rerender_surfaces(t.frames, t.K, fit.params, kCompareSeed, 2), t.K))
-          .cost;
+  const std::vector<io::DepthImage> compared =
+      rerender_surfaces(t.frames, t.K, fit.params, kCompareSeed, 2);
+  const double other = target_mismatch(t.stats, depth_stats(compared, t.K, {}, &t.frames)).cost;
   EXPECT_NE(other, read);  // 157 against 117 on these t.frames
 }
 
@@ -972,8 +974,9 @@ TEST(DepthStats, RerenderedFitCastsWithTheLateralJitterGiven) {
   })) << ::testing::PrintToString(fit.notes);
   const double cost = noted_mismatch(fit).first;
   ASSERT_GT(cost, 0);
-  const double read =
-      target_mismatch(t.stats, depth_stats(rerender_surfaces(t.frames, t.K, fit.params, p.seed, 1), t.K)).cost;
+  const std::vector<io::DepthImage> drawn =
+      rerender_surfaces(t.frames, t.K, fit.params, p.seed, 1);
+  const double read = target_mismatch(t.stats, depth_stats(drawn, t.K, {}, &t.frames)).cost;
   EXPECT_NEAR(read, cost, 0.005 * cost);  // the note gives 3 digits
   p.lateral_sigma_px.reset();
   const NoiseFit start =
@@ -1410,9 +1413,9 @@ TEST(DepthStats, FlyingPixelsBesideTheBandsCountEachPixelOnce) {
 // hole, it reaches the border). The re-render fills the strip and has three 2 x 2 holes:
 // on the camera's hole, on the wall the camera saw, and on the strip's fill. Read with the
 // camera's frame as `seen`, the last is on no surface the camera saw and is not counted;
-// on its own, all three are. Each pixel of a hole must be seen: one astride the strip's
-// edge is not counted either. Two draws of the frame pair with it as rerender_surfaces
-// orders them.
+// on its own, all three are. Each pixel of a hole and of its 2 px ring must be seen: one
+// astride the strip's edge, or beside it, is not counted either. Draws pair with frames
+// as rerender_surfaces orders them (draw-major).
 TEST(DepthStats, ReRenderedHolesCountWhereTheCameraSawASurface) {
   io::Intrinsics K;
   const io::DepthImage flat = wall(K, [](int, int) { return 0.0; });
@@ -1437,16 +1440,50 @@ TEST(DepthStats, ReRenderedHolesCountWhereTheCameraSawASurface) {
   hole(astride, 199, 100);
   EXPECT_EQ(depth_stats({astride}, K).holes_per_frame, 1.0);
   EXPECT_EQ(depth_stats({astride}, K, {}, &seen).holes_per_frame, 0.0);
+  // A hole 1 px from the strip lies on seen pixels, but its 2 px ring does not: the camera
+  // could not have counted a hole there, so the re-render's is not counted either.
+  io::DepthImage beside = flat;
+  hole(beside, 197, 100);
+  EXPECT_EQ(depth_stats({beside}, K).holes_per_frame, 1.0);
+  EXPECT_EQ(depth_stats({beside}, K, {}, &seen).holes_per_frame, 0.0);
+  // An invalid region the camera does not count as a hole (40 x 40 px, over max_hole_px)
+  // is not a surface it saw: a re-rendered hole inside it is not counted.
+  io::DepthImage big = camera;
+  for (int v = 20; v < 60; ++v)
+    for (int u = 100; u < 140; ++u) big.data[static_cast<std::size_t>(v) * 300 + u] = 0;
+  io::DepthImage inside = flat;
+  hole(inside, 118, 38);
+  const std::vector<io::DepthImage> seen_big{big};
+  EXPECT_EQ(depth_stats({big}, K).holes_per_frame, 1.0);
+  EXPECT_EQ(depth_stats({inside}, K).holes_per_frame, 1.0);
+  EXPECT_EQ(depth_stats({inside}, K, {}, &seen_big).holes_per_frame, 0.0);
+  // Draw-major pairing: images (on strip, none, on strip, none) of the frames (camera,
+  // flat) pair the holes with the camera's frame (none counted); paired frame-major (0, 0,
+  // 1, 1) the third would pair with the flat frame and count.
+  io::DepthImage on_strip = flat;
+  hole(on_strip, 204, 100);
+  const std::vector<io::DepthImage> camera_and_flat{camera, flat};
+  EXPECT_EQ(depth_stats({on_strip, flat, on_strip, flat}, K, {}, &camera_and_flat).holes_per_frame,
+            0.0);
+  EXPECT_EQ(depth_stats({flat, on_strip, flat, on_strip}, K, {}, &camera_and_flat).holes_per_frame,
+            0.5);
   // The rest of the statistics do not read `seen`.
   EXPECT_EQ(depth_stats({rendered}, K, {}, &seen).windows, depth_stats({rendered}, K).windows);
   const std::vector<io::DepthImage> none;
   EXPECT_EQ(test::error_of<std::invalid_argument>(
                 [&] { (void)depth_stats({rendered}, K, {}, &none); }),
-            "depth statistics: 1 images are not draws of 0 seen frames");
+            "depth statistics: no seen frame");
   const std::vector<io::DepthImage> two{camera, camera};
   EXPECT_EQ(test::error_of<std::invalid_argument>(
                 [&] { (void)depth_stats({rendered}, K, {}, &two); }),
-            "depth statistics: 1 images are not draws of 2 seen frames");
+            "depth statistics: 1 images are not a whole number of draws of 2 seen frames");
+  io::DepthImage narrow = camera;
+  narrow.width = 150;
+  narrow.data.resize(150 * 225);
+  const std::vector<io::DepthImage> wrong{narrow};
+  EXPECT_EQ(test::error_of<std::invalid_argument>(
+                [&] { (void)depth_stats({rendered}, K, {}, &wrong); }),
+            "seen frame 0 is 150x225, the intrinsics say 300x225");
 }
 
 TEST(DepthStats, BadInputIsNamed) {

@@ -164,14 +164,15 @@ struct DepthStats {
 
 /// Statistics of `frames` (raw depth, 0 = invalid) with `intrinsics` (size and depth unit
 /// must match). With `seen`, `frames` re-render those frames (rerender_surfaces' order:
-/// image i is a draw of seen[i mod seen.size()]), and a hole counts only where the seen
-/// frame shows a surface: each of its pixels valid there or in one of that frame's own
+/// image i is a draw of seen[i mod seen.size()]), and a hole (its count and its size)
+/// counts only where the seen frame shows a surface: each pixel of it and within 2 px of
+/// it (the ring that makes a hole isolated) valid there or in one of that frame's own
 /// interior holes. The re-rendered surfaces go on over what the camera left (its bands,
 /// the gaps between fingers, up to DepthSurfaceParams::max_gap_px), and the model's holes
 /// on those fills have no counterpart in the camera's frame (docs/sensor.md). Throws
-/// std::invalid_argument naming the problem: no frame, a size that differs from the
-/// intrinsics, no valid pixel, too few flat windows to estimate sigma, or a `seen` that
-/// is empty or whose size does not divide the frames'.
+/// std::invalid_argument naming the problem: no frame, a frame or seen frame whose size
+/// differs from the intrinsics, no valid pixel, too few flat windows to estimate sigma,
+/// or a `seen` that is empty or whose size does not divide the frames'.
 [[nodiscard]] DepthStats depth_stats(const std::vector<io::DepthImage>& frames,
                                      const io::Intrinsics& intrinsics,
                                      const DepthStatsParams& params = {},
@@ -368,7 +369,8 @@ struct TargetSpread {
 /// target_jackknife's groups at most, by default: its cost is that many readings of
 /// nearly all the frames.
 inline constexpr int kJackknifeGroups = 20;
-/// Each statistic of target_mismatch(depth_stats(real), depth_stats(sim)) with its spread
+/// Each statistic of target_mismatch(depth_stats(real), depth_stats(sim, ..., &real))
+/// (the re-render's holes counted where the camera saw a surface) with its spread
 /// over the frames. `sim` holds the same frames re-rendered (rerender_surfaces), `draws`
 /// images of each, draw-major: the comparison is paired, so a frame leaves both sides
 /// together; g = min(frames, max_groups) groups (TargetSpread::se). Throws
@@ -409,7 +411,9 @@ struct RerenderFitParams {
 /// has 10 windows), the angle term's power (AxialNoise::angle_power, with k_theta's scale
 /// read at 60 degrees), dropouts.max_incidence and the hole rate (a scale) re-applies the
 /// noise model to the casts and minimizes
-/// target_mismatch(stats, their statistics). Everything else is the one-field fit's. Deterministic: the same frames and params give the same fit for any thread
+/// target_mismatch(stats, their statistics), read with `frames` as depth_stats' `seen`
+/// (so `stats` is expected to be depth_stats(frames)). Everything else is the one-field
+/// fit's. Deterministic: the same frames and params give the same fit for any thread
 /// count. The notes add the start, the final cost and what stays outside the band. Throws
 /// as fit_noise and depth_surface_mesh do, and std::invalid_argument for `params` that
 /// RerenderFitParams::validate refuses.
