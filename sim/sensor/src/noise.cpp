@@ -45,25 +45,27 @@ NoiseParams NoiseParams::sr300() {
   NoiseParams p;
   p.axial.a = 0.00014;         // 0.140 mm
   p.axial.c = 0.0027;          // 2.70 mm/m^2
-  p.axial.k_theta = 0.00072;  // m^1.5
+  p.axial.k_theta = 0.00075;  // m^1.5
   // The camera's sigma grows more slowly towards grazing incidence than the square
   // (docs/sensor.md, "The angle term's power").
-  p.axial.angle_power = 1.625;
+  p.axial.angle_power = 1.5625;
   p.axial.correlation_px = 2.4;
-  p.axial.correlation_cols_px = 2.9;
-  p.axial.low_share = 0.965;
-  p.axial.low_rows_px = 7;
-  p.axial.low_cols_px = 7;
+  p.axial.correlation_cols_px = 2.8;
+  p.axial.low_share = 0.97;
+  p.axial.low_rows_px = 6.5;
+  p.axial.low_cols_px = 8;
   p.axial.low_angle_term = false;
   p.axial.low_stride_px = 2;
-  // The pixel-scale field's share of a + c z^2 scaled by (z / 0.65 m)^3.125, over the depths
+  // The pixel-scale field's share of a + c z^2 scaled by (z / 0.65 m)^3.25, over the depths
   // the frames hold windows at (docs/sensor.md, "The pixel-scale noise by depth").
-  p.axial.pixel_depth_power = 3.125;
+  p.axial.pixel_depth_power = 3.25;
   p.axial.pixel_depth_ref_m = 0.65;
   p.axial.pixel_depth_min_m = 0.5;
   p.axial.pixel_depth_max_m = 0.9;
   p.dropouts.max_incidence = 72 * (std::numbers::pi / 180.0);  // as a scene reads 72
-  p.dropouts.hole_rate = 51.5;
+  // 51.5 while re-rendered holes were counted where the camera saw no surface too
+  // (docs/sensor.md, "Holes counted where the camera saw a surface").
+  p.dropouts.hole_rate = 78.9;
   p.edges.drop_steps = true;
   return p;
 }
