@@ -278,11 +278,18 @@ TEST(DepthStats, RealFramesGiveTheMeasuredFigures) {
 // the two recordings differ in the sensor model only. Bands as the issue sets them: sigma
 // per depth bin within 25% (a plane fit on skin and clothing is an upper bound, and the real sigma is
 // not monotone in depth, which a + c z^2 cannot follow exactly); the edge bands (first
-// and second pixel invalid, each side) and the flying-pixel rate within 30%.
+// and second pixel invalid, each side) and the flying-pixel rate within 30%, each preset on
+// the flying rate it is fitted to (below).
 constexpr double kFidelitySigmaTol = 0.25;
 constexpr double kFidelityEdgeTol = 0.30;
 
-void expect_fidelity(const DepthStats& r, const DepthStats& s) {
+/// Which flying-pixel rate a preset is held to.
+enum class FlyingRuler {
+  all_band_neighbours,  ///< DepthStats::flying_rate, issue 8's (the one-field fit's)
+  beside_bands,         ///< DepthStats::flying_band_rate, issue 20's (the two-scale fit's)
+};
+
+void expect_fidelity(const DepthStats& r, const DepthStats& s, FlyingRuler flying) {
   ASSERT_EQ(r.sigma_by_depth.size(), s.sigma_by_depth.size());  // the same bin edges
   int bins = 0;
   for (std::size_t b = 0; b < r.sigma_by_depth.size(); ++b) {
@@ -303,7 +310,10 @@ void expect_fidelity(const DepthStats& r, const DepthStats& s) {
   };
   edges("near surface left", r.near_left, s.near_left);
   edges("near surface right", r.near_right, s.near_right);
-  EXPECT_NEAR(s.flying_rate / r.flying_rate, 1.0, kFidelityEdgeTol);
+  if (flying == FlyingRuler::all_band_neighbours)
+    EXPECT_NEAR(s.flying_rate / r.flying_rate, 1.0, kFidelityEdgeTol);
+  else
+    EXPECT_NEAR(s.flying_band_rate / r.flying_band_rate, 1.0, kFidelityEdgeTol);
   EXPECT_EQ(s.projector_side, r.projector_side);
 }
 
@@ -314,7 +324,14 @@ TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
   for (const bool two_scale : {true, false}) {
     SCOPED_TRACE(two_scale ? "sr300" : "sr300-one-field");
     const NoiseParams preset = two_scale ? NoiseParams::sr300() : NoiseParams::sr300_one_field();
-    expect_fidelity(r, depth_stats(rerender_surfaces(real, K, preset, 11), K, {}, &real));
+    // The model's expectation (the fit's draws, the comparison's seed), not one draw's luck:
+    // one draw read sr300's overall flying rate at 0.83 of the camera's, 4 at 0.66. That
+    // rate's denominator holds the valid fragments inside the bands, which the model makes
+    // more of than the camera (docs/sensor.md, "Flying pixels beside the bands"); sr300 is
+    // fitted to the rate beside the bands instead, which counts the same pixels on both.
+    const DepthStats s = depth_stats(
+        rerender_surfaces(real, K, preset, kCompareSeed, RerenderFitParams{}.draws), K, {}, &real);
+    expect_fidelity(r, s, two_scale ? FlyingRuler::beside_bands : FlyingRuler::all_band_neighbours);
   }
 }
 
