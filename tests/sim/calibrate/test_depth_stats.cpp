@@ -325,10 +325,11 @@ TEST(DepthStats, FidelityOfTheSr300PresetOnTheRealGeometry) {
     SCOPED_TRACE(two_scale ? "sr300" : "sr300-one-field");
     const NoiseParams preset = two_scale ? NoiseParams::sr300() : NoiseParams::sr300_one_field();
     // The model's expectation (the fit's draws, the comparison's seed), not one draw's luck:
-    // one draw read sr300's overall flying rate at 0.83 of the camera's, 4 at 0.66. That
-    // rate's denominator holds the valid fragments inside the bands, which the model makes
-    // more of than the camera (docs/sensor.md, "Flying pixels beside the bands"); sr300 is
-    // fitted to the rate beside the bands instead, which counts the same pixels on both.
+    // one draw (seed 11, as read until then) put sr300's overall flying rate at 0.83 of the
+    // camera's, 4 draws with the comparison's seed at 0.66. That rate's denominator holds
+    // the valid fragments inside the bands, which the model makes more of than the camera
+    // (docs/sensor.md, "Flying pixels beside the bands"); sr300 is fitted to the rate
+    // beside the bands instead, which counts the same pixels on both.
     const DepthStats s = depth_stats(
         rerender_surfaces(real, K, preset, kCompareSeed, RerenderFitParams{}.draws), K, {}, &real);
     expect_fidelity(r, s, two_scale ? FlyingRuler::beside_bands : FlyingRuler::all_band_neighbours);
