@@ -28,22 +28,18 @@ constexpr double kSr300Band = 0.5e-3;       // [m]: issue 17's sr300 target (mea
 constexpr double kSr300FarBand = 1.5e-3;    // [m]
 constexpr double kFar = 0.95;               // [m]: from here kSr300FarBand applies
 // The sr300 preset since issue 20 (two-scale): issue 17's targets are missed, and these
-// bands say by how much. 96.1% of the variance of its a + c z^2 is a field smooth over about 6 px
-// (9 mm at 0.7 m, over half a ball's radius): it moves a ball's whole cap, which no fit of one
-// frame averages out, so the centres scatter by about the field's sigma (0.5 mm at
-// 0.4 m, 1.3 mm at 0.7 m, 2.6 mm at 1 m). Measured mean node error, frame 2, straight /
-// C / S: 0.71 / 0.70 / 0.49 mm at 0.4 m, 1.25 / 1.24 / 1.19 mm at 0.7 m, 2.60 / 3.46 /
-// 2.70 mm at 1 m (the preset refitted with holes counted where the camera saw a surface,
-// measured 2026-12-02; with the angle term's power 0.71 / 0.69 / 0.49, 1.29 / 1.24 / 1.18
-// and 2.64 / 3.61 / 2.54; with the pixel-scale field's depth power 0.64 / 0.62 / 0.44, 1.21 / 1.22 / 1.19 and 2.59
-// / 3.40 / 2.78; with the shape render's rim's refit, 2026-11-29, 0.57 / 0.54 / 0.39, 1.13 /
-// 1.11 / 1.15 and 2.22 / 3.08 / 2.07; before the rim 0.62 / 0.59 / 0.43, 1.21 / 1.19 / 1.25 and 2.35 / 3.26 / 2.17; before the shape render
-// was mended, 2026-11-28, 1.27 / 1.24 / 1.33 and 2.47 / 3.41 / 2.28 at 0.7 and 1 m, and C
-// at 0.7 m slipped one component, 45 mm, until chain-fit's fresh start tried the fit moved
-// by one component). Bands: a third above the worst of the one-draw preset (1.16 mm and
-// 3.14 mm); not widened (the hole count's worst, 1.25 and 3.46 mm, leave 28% and 21%). How
-// much of that field the real camera has, the shared frames cannot settle (docs/sensor.md);
-// sr300-one-field keeps issue 17's bands above.
+// bands say by how much. 97% of the variance of its a + c z^2 is a field smooth over
+// 6.5 x 8 px (about 10 mm at 0.7 m, over half a ball's radius): it moves a ball's whole
+// cap, which no fit of one frame averages out, so the centres scatter by about the field's
+// sigma (0.5 mm at 0.4 m, 1.3 mm at 0.7 m, 2.6 mm at 1 m). Measured mean node error,
+// frame 2, straight / C / S: 0.71 / 0.70 / 0.49 mm at 0.4 m, 1.25 / 1.24 / 1.19 mm at
+// 0.7 m, 2.60 / 3.46 / 2.70 mm at 1 m (2026-12-02, the preset refitted with holes counted
+// where the camera saw a surface; every earlier refit's figures, and the C link's
+// one-component slip at 0.7 m that chain-fit's fresh start mended, are in
+// docs/robustness.md, "The two-scale camera"). Bands: a third above the worst of the
+// one-draw preset (1.16 mm and 3.14 mm); not widened (the latest worst, 1.25 and 3.46 mm,
+// leave 28% and 21%). How much of that field the real camera has, the shared frames cannot
+// settle (docs/sensor.md); sr300-one-field keeps issue 17's bands above.
 constexpr double kTwoScaleBand = 1.6e-3;     // [m]
 constexpr double kTwoScaleFarBand = 4.2e-3;  // [m]
 constexpr double kPitchTolerance = 1e-6;    // [m]: issue 17
