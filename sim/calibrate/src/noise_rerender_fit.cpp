@@ -187,12 +187,12 @@ struct Cast {
 // dropouts.max_incidence [deg], and the hole rate's scale over the one-field fit's (which
 // counts every interior hole as a drawn one; the steeper incidence cut-off leaves holes of
 // its own, most of them on what the rebuilt surfaces fill, which depth_stats' `seen`
-// leaves out: docs/sensor.md, "Holes counted where the camera saw a surface"), and the
+// leaves out: docs/sensor.md, "Holes counted where the camera saw a surface"), the
 // pixel-scale field's depth power (the quadratic-fit sigma by depth pins it: the camera's
 // grows faster with depth than a + c z^2; docs/sensor.md, "The pixel-scale noise by
-// depth"), and the angle term's
-// power (the sigma by angle pins it: the camera's grows more slowly towards grazing
-// incidence than Nguyen et al.'s square; docs/sensor.md, "The angle term's power").
+// depth"), and the angle term's power (the sigma by angle pins it: the camera's grows
+// more slowly towards grazing incidence than Nguyen et al.'s square; docs/sensor.md, "The
+// angle term's power").
 constexpr int kParams = 11;
 using Vec = std::array<double, kParams>;
 constexpr Vec kStart = {4, 2, 2, 2, 8, 8, 0.95, 0, 1, 0, 2};  // max_incidence: the start's

@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -482,14 +483,17 @@ void SensorNoise::apply(const NoiseInput& in, std::uint64_t seed, std::uint64_t 
       const std::uint16_t* down = v < H - 1 ? row + W : none_.data();
       std::uint16_t* out = depth.data.data() + static_cast<std::ptrdiff_t>(v) * W;
       float* out_m = depth_m.data() + static_cast<std::ptrdiff_t>(v) * W;
-      // Written whatever the outcome (a select, not a branch), so that the loop vectorizes.
+      // Both outputs written whatever the outcome, as their bits and a mask of all ones
+      // (kept) or zeros (dropped: 0 and +0.0), so that the loop vectorizes: a select that
+      // keeps the old value is a store only where it drops, which the compiler may not
+      // turn into a store everywhere (another thread could own the pixels it skips).
       const auto check = [&](int u, int left, int right) {
         const int a = row[u];
         const int m = std::min(std::min(less_one(left), less_one(right)),
                                std::min(less_one(up[u]), less_one(down[u])));
-        const bool drop = a - 1 - m >= d_min;
-        out[u] = drop ? std::uint16_t{0} : out[u];
-        out_m[u] = drop ? 0.0F : out_m[u];
+        const std::uint32_t keep = a - 1 - m >= d_min ? 0U : ~0U;
+        out[u] = static_cast<std::uint16_t>(out[u] & keep);
+        out_m[u] = std::bit_cast<float>(std::bit_cast<std::uint32_t>(out_m[u]) & keep);
       };
       // The two border columns apart, so that the loop between them has no bounds to test.
       const int u_lo = std::max(noisy.u0, 1), u_hi = std::min(noisy.u1, W - 2);
