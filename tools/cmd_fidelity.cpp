@@ -85,12 +85,15 @@ struct Row {
   double real, sim;
 };
 
+// A bin (of sigma or of correlation) is a row where both sides read this many windows.
+constexpr int kMinRowWindows = 5;
+
 std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
   std::vector<Row> out;
   auto bins = [&](const std::vector<sim::SigmaBin>& a, const std::vector<sim::SigmaBin>& b,
                   const std::string& what, double unit, int digits) {
     for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) {
-      if (a[i].windows < 5 || b[i].windows < 5) continue;
+      if (a[i].windows < kMinRowWindows || b[i].windows < kMinRowWindows) continue;
       std::ostringstream n;
       n << std::fixed << std::setprecision(digits) << "sigma_mm " << what << " " << a[i].lo * unit
         << "-" << a[i].hi * unit;
@@ -107,6 +110,18 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
     const std::string lag = std::to_string(l + 1);
     out.push_back({"correlation rows lag " + lag + " px", r.correlation_rows[l], s.correlation_rows[l]});
     out.push_back({"correlation columns lag " + lag + " px", r.correlation_cols[l], s.correlation_cols[l]});
+  }
+  // The same by the windows' depth, at the lags 1-4.
+  for (std::size_t b = 0; b < r.correlation_by_depth.size() && b < s.correlation_by_depth.size(); ++b) {
+    const sim::DepthStats::CorrelationBin &a = r.correlation_by_depth[b], &c = s.correlation_by_depth[b];
+    if (a.windows < kMinRowWindows || c.windows < kMinRowWindows) continue;
+    std::ostringstream z;
+    z << std::fixed << std::setprecision(2) << " px z_m " << a.lo << "-" << a.hi;
+    for (int l = 0; l < 4; ++l) {
+      const std::string lag = std::to_string(l + 1);
+      out.push_back({"correlation rows lag " + lag + z.str(), a.rows[l], c.rows[l]});
+      out.push_back({"correlation columns lag " + lag + z.str(), a.cols[l], c.cols[l]});
+    }
   }
   out.push_back({"quadratic beats plane share", r.quad_beats_plane, s.quad_beats_plane});
   for (std::size_t k = 0; k < r.scales.size() && k < s.scales.size(); ++k) {

@@ -1778,6 +1778,25 @@ background:
   const nlohmann::json j2 = nlohmann::json::parse(in2);
   EXPECT_EQ(j2["sim"], "rerender");
   EXPECT_EQ(j2["draws"], sim::RerenderFitParams{}.draws);
+  // The correlation by depth: a row at each of the lags where the sigma by depth
+  // has one (both sides read the same windows), none elsewhere.
+  const auto has_row = [&](const std::string& statistic) {
+    for (const auto& row : j2["rows"])
+      if (row["statistic"] == statistic) return true;
+    return false;
+  };
+  int depth_rows = 0;
+  for (const char* z : {"0.40-0.50", "0.50-0.60", "0.60-0.70", "0.70-0.80", "0.80-0.90", "0.90-1.00"}) {
+    const bool sigma = has_row(std::string("sigma_mm z_m ") + z);
+    depth_rows += sigma;
+    for (const char* way : {"rows", "columns"})
+      for (int lag = 1; lag <= 4; ++lag)
+        EXPECT_EQ(has_row("correlation " + std::string(way) + " lag " + std::to_string(lag) +
+                          " px z_m " + z),
+                  sigma)
+            << z;
+  }
+  EXPECT_GE(depth_rows, 3);  // the hand's frames hold windows at 0.5-0.9 m
   // The targets, each with its spread over the 11 frames (a --sim recording has
   // other frames than the camera's: no targets).
   EXPECT_TRUE(j["targets"].is_null());

@@ -36,8 +36,8 @@ struct Edge {
   bool first_invalid = false, second_invalid = false;  // 1 and 2 px past the near side
 };
 
-// Correlation sums at lags 1..4, pooled over windows and both directions; and per
-// direction at lags 1..kCorrelationLags.
+// Correlation sums at lags 1..4, pooled over windows and both directions; per direction
+// at lags 1..kCorrelationLags; and the same per direction by depth bin (`depth_edges`).
 struct CorrelationSums {
   std::array<double, 4> ab{}, aa{}, bb{};
   struct Direction {
@@ -49,6 +49,18 @@ struct CorrelationSums {
       return c;
     }
   } rows, cols;
+  struct Bin {
+    int windows = 0;
+    Direction rows, cols;
+  };
+  std::vector<double> depth_edges;
+  std::vector<Bin> by_depth;  // one fewer than depth_edges
+  // The bin of a window at median depth z [m], or null outside the edges.
+  [[nodiscard]] Bin* bin(double z) {
+    const auto it = std::upper_bound(depth_edges.begin(), depth_edges.end(), z);
+    if (it == depth_edges.begin() || it == depth_edges.end()) return nullptr;
+    return &by_depth[static_cast<std::size_t>(it - depth_edges.begin() - 1)];
+  }
 };
 
 class Frame {
@@ -139,24 +151,34 @@ class Frame {
         // Correlation on windows seen nearly face-on only: on a slanted surface the lateral
         // noise adds depth noise of its own, white, which would dilute the reading.
         if (corr == nullptr || out.back().angle >= p_.depth_bin_max_angle) continue;
+        CorrelationSums::Bin* at_depth = corr->bin(out.back().z);
+        if (at_depth != nullptr) ++at_depth->windows;
         for (int lag = 1; lag <= kCorrelationLags && lag < n; ++lag)
           for (int j = 0; j < n; ++j)
             for (int i = 0; i < n; ++i) {
               const std::size_t k = static_cast<std::size_t>(j * n + i);
               if (!ok[k]) continue;
-              const auto add = [&](std::size_t k2, CorrelationSums::Direction& d) {
+              const auto add = [&](std::size_t k2, CorrelationSums::Direction& d,
+                                   CorrelationSums::Direction* d_at_depth) {
                 if (!ok[k2]) return;
                 const double ab = r[k] * r[k2], aa = r[k] * r[k], bb = r[k2] * r[k2];
-                d.ab[lag - 1] += ab;
-                d.aa[lag - 1] += aa;
-                d.bb[lag - 1] += bb;
+                for (CorrelationSums::Direction* e : {&d, d_at_depth}) {
+                  if (e == nullptr) continue;
+                  e->ab[lag - 1] += ab;
+                  e->aa[lag - 1] += aa;
+                  e->bb[lag - 1] += bb;
+                }
                 if (lag > 4) return;
                 corr->ab[lag - 1] += ab;
                 corr->aa[lag - 1] += aa;
                 corr->bb[lag - 1] += bb;
               };
-              if (i + lag < n) add(k + static_cast<std::size_t>(lag), corr->rows);
-              if (j + lag < n) add(k + static_cast<std::size_t>(lag * n), corr->cols);
+              if (i + lag < n)
+                add(k + static_cast<std::size_t>(lag), corr->rows,
+                    at_depth != nullptr ? &at_depth->rows : nullptr);
+              if (j + lag < n)
+                add(k + static_cast<std::size_t>(lag * n), corr->cols,
+                    at_depth != nullptr ? &at_depth->cols : nullptr);
             }
       }
     }
@@ -412,6 +434,8 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
   s.depth_bin_max_angle = p.depth_bin_max_angle;
   s.neighbour_jump = p.neighbour_jump;
   CorrelationSums corr;
+  corr.depth_edges = p.depth_edges;
+  corr.by_depth.resize(p.depth_edges.size() - 1);
   std::vector<std::vector<DepthStats::Window>> scale_samples(p.scale_windows.size());
   std::vector<Edge> edges;
   long flying = 0, lone = 0;
@@ -504,6 +528,10 @@ DepthStats depth_stats(const std::vector<io::DepthImage>& frames, const io::Intr
         corr.aa[l] > 0 && corr.bb[l] > 0 ? corr.ab[l] / std::sqrt(corr.aa[l] * corr.bb[l]) : 0;
   s.correlation_rows = corr.rows.correlation();
   s.correlation_cols = corr.cols.correlation();
+  for (std::size_t b = 0; b < corr.by_depth.size(); ++b)
+    s.correlation_by_depth.push_back({p.depth_edges[b], p.depth_edges[b + 1],
+                                      corr.by_depth[b].windows, corr.by_depth[b].rows.correlation(),
+                                      corr.by_depth[b].cols.correlation()});
   const auto scale_of = [](int window, const std::vector<DepthStats::Window>& ws) {
     DepthStats::Scale sc;
     sc.window = window;

@@ -1387,6 +1387,63 @@ TEST(DepthStats, QuadraticSigmaByDepthReadsEachDepthsNoise) {
   EXPECT_EQ(by_angle, near.windows + far.windows);
 }
 
+// The correlation by depth: two walls, at 0.65 m with white noise and at 0.75 m with
+// noise averaged over 5 px of a row, each read in its own depth bin (the far one along rows
+// only, as RowCorrelatedNoiseReadsAlongRowsOnly reads it alone) from the windows
+// sigma_by_depth reads; bins without a window read 0. One bin over every depth pools the
+// same sums as correlation_rows and correlation_cols, so it reads them exactly.
+TEST(DepthStats, CorrelationByDepthReadsEachDepthsNoise) {
+  const std::vector<double> near_noise = white_field(13, 0.001, 300 * 225);
+  const std::vector<double> far_noise = white_field(14, 0.002, 304 * 225);
+  io::Intrinsics K;
+  const io::DepthImage near_wall = wall(K, [&](int u, int v) { return 0.05 + near_noise[v * 300 + u]; });
+  const io::DepthImage far_wall = wall(K, [&](int u, int v) {
+    double sum = 0;
+    for (int d = 0; d < 5; ++d) sum += far_noise[v * 304 + u + d];
+    return 0.15 + sum / 5;
+  });
+  const DepthStats s = depth_stats({near_wall, far_wall}, K);
+  ASSERT_EQ(s.correlation_by_depth.size(), s.sigma_by_depth.size());
+  const DepthStats::CorrelationBin* near = nullptr;
+  const DepthStats::CorrelationBin* far = nullptr;
+  for (std::size_t k = 0; k < s.sigma_by_depth.size(); ++k) {
+    const DepthStats::CorrelationBin& b = s.correlation_by_depth[k];
+    EXPECT_EQ(b.lo, s.sigma_by_depth[k].lo);
+    EXPECT_EQ(b.hi, s.sigma_by_depth[k].hi);
+    EXPECT_EQ(b.windows, s.sigma_by_depth[k].windows) << "bin " << k;
+    if (b.lo <= 0.65 && 0.65 < b.hi) near = &b;
+    if (b.lo <= 0.75 && 0.75 < b.hi) far = &b;
+    if (b.windows != 0) continue;
+    for (int l = 0; l < kCorrelationLags; ++l) {
+      EXPECT_EQ(b.rows[l], 0.0) << "bin " << k;
+      EXPECT_EQ(b.cols[l], 0.0) << "bin " << k;
+    }
+  }
+  ASSERT_NE(near, nullptr);
+  ASSERT_NE(far, nullptr);
+  ASSERT_GT(near->windows, 100);
+  ASSERT_EQ(far->windows, near->windows);
+  for (int l = 0; l < kCorrelationLags; ++l) {
+    EXPECT_LT(std::abs(near->rows[l]), 0.05) << "lag " << l + 1;
+    EXPECT_LT(std::abs(near->cols[l]), 0.05) << "lag " << l + 1;
+  }
+  EXPECT_GT(far->rows[0], 0.6);
+  EXPECT_GT(far->rows[1], 0.4);
+  EXPECT_LT(std::abs(far->cols[0]), 0.15);
+  // Pooled, the near wall's white noise dilutes the far wall's correlation.
+  EXPECT_LT(s.correlation_rows[0], far->rows[0] - 0.2);
+
+  DepthStatsParams one_bin;
+  one_bin.depth_edges = {0.0, 10.0};
+  const DepthStats pooled = depth_stats({near_wall, far_wall}, K, one_bin);
+  ASSERT_EQ(pooled.correlation_by_depth.size(), 1u);
+  EXPECT_EQ(pooled.correlation_by_depth[0].windows, 2 * near->windows);
+  for (int l = 0; l < kCorrelationLags; ++l) {
+    EXPECT_EQ(pooled.correlation_by_depth[0].rows[l], pooled.correlation_rows[l]) << "lag " << l + 1;
+    EXPECT_EQ(pooled.correlation_by_depth[0].cols[l], pooled.correlation_cols[l]) << "lag " << l + 1;
+  }
+}
+
 // Valid neighbours across a 100 mm step are jumps, one per row; an invalid column between
 // the two sides (what a real camera leaves) makes none.
 TEST(DepthStats, NeighbourJumpsCountValidPairsAcrossAStep) {

@@ -100,6 +100,16 @@ struct DepthStats {
   /// The same correlation along rows only (lag in u) and along columns only (lag in v), at
   /// lags 1..kCorrelationLags px: real cameras' noise is not isotropic.
   std::array<double, kCorrelationLags> correlation_rows{}, correlation_cols{};
+  /// correlation_rows and correlation_cols per depth bin (DepthStatsParams::depth_edges)
+  /// of the windows' median depth, over the windows they read: whether the noise's
+  /// correlation changes with depth (docs/sensor.md, "Not depth: the rows' correlation by
+  /// depth"). Reported, not fitted.
+  struct CorrelationBin {
+    double lo = 0, hi = 0;  ///< bin edges [m]
+    int windows = 0;        ///< windows under depth_bin_max_angle in the bin
+    std::array<double, kCorrelationLags> rows{}, cols{};  ///< 0 where a lag has no pair
+  };
+  std::vector<CorrelationBin> correlation_by_depth;
   /// Median quadratic-fit sigma per incidence bin (the bins of sigma_by_angle).
   std::vector<SigmaBin> sigma_quad_by_angle;
   /// Median quadratic-fit sigma per depth bin, of the windows sigma_by_depth reads (under
