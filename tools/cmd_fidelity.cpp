@@ -8,6 +8,7 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "cli_common.hpp"
@@ -112,8 +113,10 @@ std::vector<Row> rows(const sim::DepthStats& r, const sim::DepthStats& s) {
     out.push_back({"correlation columns lag " + lag + " px", r.correlation_cols[l], s.correlation_cols[l]});
   }
   // The same by the windows' depth, at the issue's lags 1-4.
-  for (std::size_t b = 0; b < r.correlation_by_depth.size() && b < s.correlation_by_depth.size(); ++b) {
-    const sim::DepthStats::CorrelationBin &a = r.correlation_by_depth[b], &c = s.correlation_by_depth[b];
+  for (std::size_t b = 0; b < r.correlation_by_depth.size() && b < s.correlation_by_depth.size();
+       ++b) {
+    const sim::DepthStats::CorrelationBin &a = r.correlation_by_depth[b],
+                                          &c = s.correlation_by_depth[b];
     if (a.windows < kMinRowWindows || c.windows < kMinRowWindows) continue;
     std::ostringstream z;
     z << std::fixed << std::setprecision(2) << " px z_m " << a.lo << "-" << a.hi;
@@ -188,30 +191,64 @@ int run_fidelity(const FidelityOptions& o) {
   const sim::DepthStats& real = real_m.stats;
   const sim::DepthStats& simulated = sim_m.stats;
   const std::vector<Row> table = rows(real, simulated);
+  // The spread over the frames: only where each simulated image is a draw of one real
+  // frame (--rerender), so that a frame can leave both sides.
+  const std::size_t n_frames = real_m.images.size();
+  const bool spread_read = o.rerender && n_frames >= 3;
+  const std::vector<std::optional<sim::LeftOut>> left =
+      spread_read ? sim::leave_groups_out(real_m.images, sim_m.images, real_m.K)
+                  : std::vector<std::optional<sim::LeftOut>>{};
+  // Each row's jackknife se of the camera's value and of sim - real (paired), from the
+  // same readings as the targets' (NaN where a row is not read without a group).
+  std::vector<std::vector<Row>> left_rows(left.size());
+  for (std::size_t i = 0; i < left.size(); ++i)
+    if (left[i]) left_rows[i] = rows(left[i]->real, left[i]->sim);
+  const auto row_se = [&](const std::string& name, bool of_difference) {
+    std::vector<double> values(left.size(), std::nan(""));
+    for (std::size_t i = 0; i < left.size(); ++i)
+      for (const Row& r : left_rows[i])
+        if (r.name == name) values[i] = of_difference ? r.sim - r.real : r.real;
+    return sim::jackknife_se(values);
+  };
   std::ostringstream text;
   text << std::left << std::setw(44) << "statistic" << std::right << std::setw(10) << "real"
-       << std::setw(10) << "sim" << std::setw(10) << "sim/real" << "\n";
+       << std::setw(10) << "sim" << std::setw(10) << "sim/real";
+  if (spread_read)
+    text << std::setw(10) << "se real" << std::setw(10) << "sim-real" << std::setw(10) << "se";
+  text << "\n";
   nlohmann::json j_rows = nlohmann::json::array();
   for (const Row& r : table) {
     const double ratio = r.real != 0 ? r.sim / r.real : std::nan("");
     text << std::left << std::setw(44) << r.name << std::right << std::fixed << std::setprecision(3)
-         << std::setw(10) << r.real << std::setw(10) << r.sim << std::setw(10) << ratio << "\n";
-    j_rows.push_back({{"statistic", r.name}, {"real", json_number(r.real)},
-                      {"sim", json_number(r.sim)}, {"ratio", json_number(ratio)}});
+         << std::setw(10) << r.real << std::setw(10) << r.sim << std::setw(10) << ratio;
+    nlohmann::json row = {{"statistic", r.name},
+                          {"real", json_number(r.real)},
+                          {"sim", json_number(r.sim)},
+                          {"ratio", json_number(ratio)}};
+    if (spread_read) {
+      const double se_real = row_se(r.name, false), se_difference = row_se(r.name, true);
+      text << std::setw(10) << se_real << std::setw(10) << r.sim - r.real << std::setw(10)
+           << se_difference;
+      row["se_real"] = json_number(se_real);
+      row["difference"] = json_number(r.sim - r.real);
+      row["se_difference"] = json_number(se_difference);
+    }
+    text << "\n";
+    j_rows.push_back(row);
   }
   if (o.rerender)
     text << "(re-rendered holes count where the real frame shows a surface: docs/sensor.md, "
             "Holes)\n";
-  // The issue's targets with their spread over the frames: only where each simulated
-  // image is a draw of one real frame (--rerender), so that a frame can leave both sides.
+  if (spread_read)
+    text << "(se real, se: the jackknife's over the frames, as the targets' below, of the "
+            "camera's value and of sim - real)\n";
+  // The issue's targets with their spread over the frames.
   nlohmann::json j_targets = nullptr;
-  const std::size_t n_frames = real_m.images.size();
   if (o.rerender && n_frames < 3) {
     text << "\ntargets (issue 20): not listed: " << n_frames
          << " frames, and their spread needs 3 or more\n";
   } else if (o.rerender) {
-    const std::vector<sim::TargetSpread> spread =
-        sim::target_jackknife(real_m.images, sim_m.images, real_m.K);
+    const std::vector<sim::TargetSpread> spread = sim::target_jackknife(real, simulated, left);
     text << "\ntargets (issue 20): sim/real, or sim - real for a correlation the camera reads\n"
          << "under " << std::defaultfloat << sim::kSmallCorrelation
          << "; se: jackknife over " << n_frames << " frames, "

@@ -1786,7 +1786,8 @@ background:
     return false;
   };
   int depth_rows = 0;
-  for (const char* z : {"0.40-0.50", "0.50-0.60", "0.60-0.70", "0.70-0.80", "0.80-0.90", "0.90-1.00"}) {
+  for (const char* z :
+       {"0.40-0.50", "0.50-0.60", "0.60-0.70", "0.70-0.80", "0.80-0.90", "0.90-1.00"}) {
     const bool sigma = has_row(std::string("sigma_mm z_m ") + z);
     depth_rows += sigma;
     for (const char* way : {"rows", "columns"})
@@ -1810,6 +1811,19 @@ background:
   EXPECT_GT(holes["se"].get<double>(), 0.0);
   EXPECT_LT(holes["se"].get<double>(), 0.5);
   EXPECT_NE(r.out.find("jackknife over 11 frames"), std::string::npos) << r.out;
+  // Every row carries the same spread: a target compared as sim - real has its row's se
+  // of the difference; a --sim recording's rows have none.
+  int differences = 0;
+  for (const auto& t : j2["targets"]) {
+    if (t["compared"] != "sim-real") continue;
+    ++differences;
+    const nlohmann::json row = fidelity_row(j2, t["target"].get<std::string>() + " px");
+    EXPECT_NEAR(row["difference"].get<double>(), t["value"].get<double>(), 1e-12) << t.dump();
+    EXPECT_NEAR(row["se_difference"].get<double>(), t["se"].get<double>(), 1e-12) << t.dump();
+    EXPECT_GT(row["se_real"].get<double>(), 0.0) << t.dump();
+  }
+  EXPECT_GE(differences, 1);  // the camera's rows read 0.13 and -0.13 at lags 3 and 4
+  EXPECT_FALSE(fidelity_row(j, "flying rate").contains("se_real"));
   // A re-render's holes are counted where the camera saw a surface, and the report says so.
   const std::string holes_rule = "re-rendered holes count where the real frame shows a surface";
   EXPECT_NE(r.out.find(holes_rule), std::string::npos) << r.out;

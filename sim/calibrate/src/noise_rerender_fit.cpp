@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -93,10 +94,11 @@ TargetMismatch target_mismatch(const DepthStats& real, const DepthStats& sim) {
   return m;
 }
 
-std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& real,
-                                           const std::vector<io::DepthImage>& sim,
-                                           const io::Intrinsics& intrinsics,
-                                           const DepthStatsParams& params, int max_groups) {
+std::vector<std::optional<LeftOut>> leave_groups_out(const std::vector<io::DepthImage>& real,
+                                                     const std::vector<io::DepthImage>& sim,
+                                                     const io::Intrinsics& intrinsics,
+                                                     const DepthStatsParams& params,
+                                                     int max_groups) {
   const std::size_t n = real.size();
   if (n < 3)
     throw std::invalid_argument("target_jackknife: " + std::to_string(n) +
@@ -109,18 +111,11 @@ std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& re
                                 " simulated images are not draws of " + std::to_string(n) +
                                 " frames");
   const std::size_t draws = sim.size() / n;
-  std::vector<TargetSpread> out;
-  for (const TargetStatistic& t :
-       target_mismatch(depth_stats(real, intrinsics, params),
-                       depth_stats(sim, intrinsics, params, &real))
-           .compared)
-    out.push_back({t, 0.0});
   // Consecutive frames in g groups (frame f in group f g / n): one frame each up to
   // max_groups, so that the cost stays that many readings of the recording.
   const std::size_t g = std::min(n, static_cast<std::size_t>(max_groups));
   const auto group = [&](std::size_t f) { return f * g / n; };
-  // Each statistic's values without group i, where it was compared as on all frames.
-  std::vector<std::vector<double>> left(out.size());
+  std::vector<std::optional<LeftOut>> out(g);
   std::vector<io::DepthImage> r, s;
   for (std::size_t i = 0; i < g; ++i) {
     r.clear();
@@ -130,35 +125,57 @@ std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& re
     for (std::size_t d = 0; d < draws; ++d)
       for (std::size_t f = 0; f < n; ++f)
         if (group(f) != i) s.push_back(sim[d * n + f]);
-    TargetMismatch m;
     try {
-      m = target_mismatch(depth_stats(r, intrinsics, params),
-                          depth_stats(s, intrinsics, params, &r));
+      out[i] = LeftOut{depth_stats(r, intrinsics, params), depth_stats(s, intrinsics, params, &r)};
     } catch (const std::invalid_argument&) {
-      continue;  // unreadable without this group: every statistic's se is NaN
+      // unreadable without this group: every statistic's se is NaN
     }
+  }
+  return out;
+}
+
+double jackknife_se(const std::vector<double>& left) {
+  const std::size_t g = left.size();
+  if (g < 2) return std::numeric_limits<double>::quiet_NaN();
+  double mean = 0;
+  for (const double v : left) mean += v;  // a NaN reading makes the se NaN
+  mean /= static_cast<double>(g);
+  double ss = 0;
+  for (const double v : left) ss += (v - mean) * (v - mean);
+  return std::sqrt(static_cast<double>(g - 1) / static_cast<double>(g) * ss);
+}
+
+std::vector<TargetSpread> target_jackknife(const DepthStats& real, const DepthStats& sim,
+                                           const std::vector<std::optional<LeftOut>>& left) {
+  std::vector<TargetSpread> out;
+  for (const TargetStatistic& t : target_mismatch(real, sim).compared) out.push_back({t, 0.0});
+  // Each statistic's value without each group, where it was compared as on all frames.
+  std::vector<std::vector<double>> values(out.size(),
+                                          std::vector<double>(left.size(), std::nan("")));
+  for (std::size_t i = 0; i < left.size(); ++i) {
+    if (!left[i]) continue;
+    const TargetMismatch m = target_mismatch(left[i]->real, left[i]->sim);
     for (std::size_t k = 0; k < out.size(); ++k) {
       const TargetStatistic& a = out[k].all;
       for (const TargetStatistic& t : m.compared)
         if (t.name == a.name && t.difference == a.difference && t.sides == a.sides) {
-          left[k].push_back(t.value());
+          values[k][i] = t.value();
           break;
         }
     }
   }
-  for (std::size_t k = 0; k < out.size(); ++k) {
-    if (left[k].size() != g) {
-      out[k].se = std::numeric_limits<double>::quiet_NaN();
-      continue;
-    }
-    double mean = 0;
-    for (const double v : left[k]) mean += v;
-    mean /= static_cast<double>(g);
-    double ss = 0;
-    for (const double v : left[k]) ss += (v - mean) * (v - mean);
-    out[k].se = std::sqrt(static_cast<double>(g - 1) / static_cast<double>(g) * ss);
-  }
+  for (std::size_t k = 0; k < out.size(); ++k) out[k].se = jackknife_se(values[k]);
   return out;
+}
+
+std::vector<TargetSpread> target_jackknife(const std::vector<io::DepthImage>& real,
+                                           const std::vector<io::DepthImage>& sim,
+                                           const io::Intrinsics& intrinsics,
+                                           const DepthStatsParams& params, int max_groups) {
+  const std::vector<std::optional<LeftOut>> left =
+      leave_groups_out(real, sim, intrinsics, params, max_groups);
+  return target_jackknife(depth_stats(real, intrinsics, params),
+                          depth_stats(sim, intrinsics, params, &real), left);
 }
 
 namespace {

@@ -12,12 +12,13 @@
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
 #include <tuple>
-#include <limits>
 #include <utility>
 #include <vector>
 
@@ -831,6 +832,34 @@ TEST(DepthStats, TargetJackknifeLeavesOneFrameOutOnBothSides) {
             std::string::npos);
 }
 
+// jackknife_se: sqrt((g - 1) / g sum (v_i - mean)^2); NaN with a reading missing (NaN) or
+// fewer than 2. leave_groups_out: one pair a group, each without its group's frames on
+// both sides (and every draw of them), nullopt where they cannot be read.
+TEST(DepthStats, LeaveGroupsOutAndTheJackknifesSe) {
+  EXPECT_NEAR(jackknife_se({1.0, 2.0, 3.0}), std::sqrt(2.0 / 3.0 * 2.0), 1e-15);
+  EXPECT_EQ(jackknife_se({4.0, 4.0}), 0.0);
+  EXPECT_TRUE(std::isnan(jackknife_se({1.0, std::nan(""), 3.0})));
+  EXPECT_TRUE(std::isnan(jackknife_se({1.0})));
+  io::Intrinsics K;
+  std::vector<io::DepthImage> real = real_frames(K);
+  real.resize(4);
+  std::vector<io::DepthImage> twice = real;  // two draws of each frame, draw-major
+  twice.insert(twice.end(), real.begin(), real.end());
+  const std::vector<std::optional<LeftOut>> left = leave_groups_out(real, twice, K, {}, 2);
+  ASSERT_EQ(left.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    ASSERT_TRUE(left[i].has_value()) << i;
+    EXPECT_EQ(left[i]->real.frames, 2) << i;
+    EXPECT_EQ(left[i]->sim.frames, 4) << i;
+    // Without frames 0-1 (group 0) the camera reads what frames 2-3 read alone.
+    const std::vector<io::DepthImage> kept(real.begin() + 2 * static_cast<long>(1 - i),
+                                           real.begin() + 2 * static_cast<long>(2 - i));
+    EXPECT_EQ(left[i]->real.windows, depth_stats(kept, K).windows) << i;
+    EXPECT_EQ(left[i]->real.correlation_rows, depth_stats(kept, K).correlation_rows) << i;
+  }
+  EXPECT_EQ(leave_groups_out(real, twice, K).size(), 4u);  // one frame a group
+}
+
 // The first two shared frames and their statistics: enough for a fit's mechanics.
 struct TwoFrames {
   io::Intrinsics K;
@@ -1396,7 +1425,8 @@ TEST(DepthStats, CorrelationByDepthReadsEachDepthsNoise) {
   const std::vector<double> near_noise = white_field(13, 0.001, 300 * 225);
   const std::vector<double> far_noise = white_field(14, 0.002, 304 * 225);
   io::Intrinsics K;
-  const io::DepthImage near_wall = wall(K, [&](int u, int v) { return 0.05 + near_noise[v * 300 + u]; });
+  const io::DepthImage near_wall =
+      wall(K, [&](int u, int v) { return 0.05 + near_noise[v * 300 + u]; });
   const io::DepthImage far_wall = wall(K, [&](int u, int v) {
     double sum = 0;
     for (int d = 0; d < 5; ++d) sum += far_noise[v * 304 + u + d];
@@ -1439,8 +1469,10 @@ TEST(DepthStats, CorrelationByDepthReadsEachDepthsNoise) {
   ASSERT_EQ(pooled.correlation_by_depth.size(), 1u);
   EXPECT_EQ(pooled.correlation_by_depth[0].windows, 2 * near->windows);
   for (int l = 0; l < kCorrelationLags; ++l) {
-    EXPECT_EQ(pooled.correlation_by_depth[0].rows[l], pooled.correlation_rows[l]) << "lag " << l + 1;
-    EXPECT_EQ(pooled.correlation_by_depth[0].cols[l], pooled.correlation_cols[l]) << "lag " << l + 1;
+    EXPECT_EQ(pooled.correlation_by_depth[0].rows[l], pooled.correlation_rows[l])
+        << "lag " << l + 1;
+    EXPECT_EQ(pooled.correlation_by_depth[0].cols[l], pooled.correlation_cols[l])
+        << "lag " << l + 1;
   }
 }
 

@@ -392,6 +392,27 @@ inline constexpr int kJackknifeGroups = 20;
                                                          const DepthStatsParams& params = {},
                                                          int max_groups = kJackknifeGroups);
 
+/// The statistics of the camera's frames and of their re-renders without one group of
+/// frames (and every draw of them): what target_jackknife reads, for any statistic.
+struct LeftOut {
+  DepthStats real, sim;
+};
+/// For each of target_jackknife's g groups in turn, the frames without it read as
+/// target_jackknife reads them (the re-render's holes where the camera saw a surface);
+/// nullopt where they cannot be read. Throws as target_jackknife.
+[[nodiscard]] std::vector<std::optional<LeftOut>> leave_groups_out(
+    const std::vector<io::DepthImage>& real, const std::vector<io::DepthImage>& sim,
+    const io::Intrinsics& intrinsics, const DepthStatsParams& params = {},
+    int max_groups = kJackknifeGroups);
+/// target_jackknife from readings made already: `real` and `sim` on every frame, `left`
+/// from leave_groups_out of the same frames.
+[[nodiscard]] std::vector<TargetSpread> target_jackknife(
+    const DepthStats& real, const DepthStats& sim, const std::vector<std::optional<LeftOut>>& left);
+/// The jackknife's standard error of a statistic read without each of g groups in turn,
+/// sqrt((g - 1) / g sum_i (v_i - v_mean)^2) (TargetSpread::se); NaN when a reading is NaN
+/// (not read without that group) or there are fewer than 2.
+[[nodiscard]] double jackknife_se(const std::vector<double>& left);
+
 /// How fit_noise_rerendered searches.
 struct RerenderFitParams {
   int sweeps = 12;         ///< pattern-search sweeps (at most 2 renders per parameter: 20)
