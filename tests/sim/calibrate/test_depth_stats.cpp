@@ -858,6 +858,19 @@ TEST(DepthStats, LeaveGroupsOutAndTheJackknifesSe) {
     EXPECT_EQ(left[i]->real.correlation_rows, depth_stats(kept, K).correlation_rows) << i;
   }
   EXPECT_EQ(leave_groups_out(real, twice, K).size(), 4u);  // one frame a group
+  // Frames 1 and 2 a 14 x 14 px patch each, which holds no flat window: without frame 0
+  // nothing can be read, with it everything can.
+  std::vector<io::DepthImage> patches(3, real[0]);
+  for (std::size_t f = 1; f < 3; ++f)
+    for (int v = 0; v < K.height; ++v)
+      for (int u = 0; u < K.width; ++u)
+        if (v < 200 || v >= 214 || u < 300 || u >= 314)
+          patches[f].data[static_cast<std::size_t>(v) * K.width + u] = 0;
+  const std::vector<std::optional<LeftOut>> unreadable = leave_groups_out(patches, patches, K);
+  ASSERT_EQ(unreadable.size(), 3u);
+  EXPECT_FALSE(unreadable[0].has_value());
+  EXPECT_TRUE(unreadable[1].has_value());
+  EXPECT_TRUE(unreadable[2].has_value());
 }
 
 // The first two shared frames and their statistics: enough for a fit's mechanics.
