@@ -4,6 +4,7 @@
 // scene file accepts as it is, and (with --report) the statistics as JSON.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -38,6 +39,8 @@ struct CalibrateOptions {
   bool draws_given = false;
   double lateral_sigma_px = 0;  // two-scale: the casts' jitter, when given
   bool lateral_given = false;
+  std::uint64_t seed = sim::RerenderFitParams{}.seed;  // two-scale: the re-renders' draws
+  bool seed_given = false;
 };
 
 // The --structure values, from the structures' one list.
@@ -48,11 +51,16 @@ std::vector<std::string> structure_names() {
 }
 
 std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source, int frames,
-                       const std::string& half) {
+                       const std::string& half, std::uint64_t seed) {
   const sim::NoiseParams& n = fit.params;
   std::ostringstream y;
   y << "# linksight calibrate-noise: fitted to " << frames << " frames of " << source;
-  if (half != "all") y << " (--half " << half << ")";
+  // The options that choose what was fitted, where they are not the defaults.
+  std::vector<std::string> chosen;
+  if (half != "all") chosen.push_back("--half " + half);
+  if (seed != sim::RerenderFitParams{}.seed) chosen.push_back("--seed " + std::to_string(seed));
+  for (std::size_t i = 0; i < chosen.size(); ++i)
+    y << (i == 0 ? " (" : ", ") << chosen[i] << (i + 1 == chosen.size() ? ")" : "");
   y << "\n";
   for (const std::string& note : fit.notes) y << "# note: " << note << "\n";
   n.validate();  // a fit outside the model's ranges would write a block no scene loads
@@ -246,9 +254,13 @@ int run_calibrate(const CalibrateOptions& o) {
   if (o.lateral_given && structure != sim::NoiseStructure::two_scale)
     throw io::InputError("--lateral-sigma-px: only the two-scale structure casts the frames "
                          "(--structure " + o.structure + ")");
+  if (o.seed_given && structure != sim::NoiseStructure::two_scale)
+    throw io::InputError("--seed: only the two-scale structure draws noise (--structure " +
+                         o.structure + ")");
   sim::RerenderFitParams rerender;
   rerender.sweeps = o.sweeps;
   rerender.draws = o.draws;
+  rerender.seed = o.seed;
   if (o.lateral_given) rerender.lateral_sigma_px = o.lateral_sigma_px;
   try {  // the search's own checks (the jitter's range is LateralNoise's), before any frame is read
     rerender.validate();
@@ -295,7 +307,7 @@ int run_calibrate(const CalibrateOptions& o) {
     fit = sim::fit_noise(stats, sim::NoiseParams::sr300_one_field(), shape_p, structure);
   }
   io::StagedFiles out;
-  out.open(o.out) << noise_yaml(fit, o.input, stats.frames, o.half);
+  out.open(o.out) << noise_yaml(fit, o.input, stats.frames, o.half, o.seed);
   if (!o.report.empty()) {
     std::error_code ec;
     fs::create_directories(o.report, ec);
@@ -356,13 +368,19 @@ Runner add_calibrate_noise(CLI::App& app) {
       app.add_option("--lateral-sigma-px", o->lateral_sigma_px,
                      "two-scale: the lateral jitter [px] the frames are cast with and the block "
                      "keeps (default: the sr300-one-field preset's estimate; not searched)");
+  CLI::Option* seed =
+      app.add_option("--seed", o->seed,
+                     "two-scale: the seed of the re-renders' noise draws (another seed shows how "
+                     "far the fit moves with the draws alone)")
+          ->capture_default_str();
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
-  return [o, sweeps, draws, lateral] {
+  return [o, sweeps, draws, lateral, seed] {
     o->sweeps_given = sweeps->count() > 0;
     o->draws_given = draws->count() > 0;
     o->lateral_given = lateral->count() > 0;
+    o->seed_given = seed->count() > 0;
     return run_calibrate(*o);
   };
 }

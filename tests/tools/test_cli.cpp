@@ -1688,6 +1688,33 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   const sim::LateralNoise lateral = sim::load_scene(dir / "scene4.yaml").noise.lateral;
   EXPECT_TRUE(lateral.enabled);
   EXPECT_EQ(lateral.sigma_px, 0.05);
+  // --seed: the default's seed given is the default's block, byte for byte; another seed
+  // draws other noise (the start's mismatch moves), and the header says which seed.
+  const auto seeded = [&](const std::string& seed, const std::string& name) {
+    const fs::path out = dir / name;
+    const CliRun r =
+        run("calibrate-noise --structure two-scale --sweeps 0 --draws 1 "
+            "--lateral-sigma-px 0.05 --quiet --seed " +
+                seed + " --input " + (real / "frames").string() + " --intrinsics " +
+                (real / "intrinsics.json").string() + " --out " + out.string(),
+            dir);
+    EXPECT_EQ(r.code, 0) << r.err;
+    return slurp_text(out);
+  };
+  EXPECT_EQ(seeded("1", "seed1.yaml"), text4);
+  const std::string text5 = seeded("2", "seed2.yaml");
+  EXPECT_EQ(text5.rfind("# linksight calibrate-noise: fitted to 11 frames of " +
+                            (real / "frames").string() + " (--seed 2)\n",
+                        0),
+            0u)
+      << text5;
+  const auto mismatch = [](const std::string& text) {
+    std::smatch m;
+    EXPECT_TRUE(std::regex_search(text, m, std::regex("target mismatch ([0-9.e+-]+) \\(start")))
+        << text;
+    return m.size() > 1 ? m[1].str() : std::string();
+  };
+  EXPECT_NE(mismatch(text5), mismatch(text4));
 }
 
 TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
@@ -1710,6 +1737,8 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
   expect_refused("calibrate-noise --structure two-scale --draws 0 --input " +
                      (real / "frames").string() + k,
                  "--draws");
+  expect_refused("calibrate-noise --seed 2 --input " + (real / "frames").string() + k,
+                 "--seed: only the two-scale structure draws noise (--structure one-field)");
   expect_refused("calibrate-noise --lateral-sigma-px 0 --input " + (real / "frames").string() + k,
                  "--lateral-sigma-px: only the two-scale structure casts the frames (--structure "
                  "one-field)");
