@@ -1691,15 +1691,15 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   // --seed: the default's seed given is the default's block, byte for byte; another seed
   // draws other noise (the start's mismatch moves), and the header says which seed.
   const auto seeded = [&](const std::string& seed, const std::string& name) {
-    const fs::path out = dir / name;
-    const CliRun r =
+    const fs::path seeded_path = dir / name;
+    const CliRun rs =
         run("calibrate-noise --structure two-scale --sweeps 0 --draws 1 "
             "--lateral-sigma-px 0.05 --quiet --seed " +
                 seed + " --input " + (real / "frames").string() + " --intrinsics " +
-                (real / "intrinsics.json").string() + " --out " + out.string(),
+                (real / "intrinsics.json").string() + " --out " + seeded_path.string(),
             dir);
-    EXPECT_EQ(r.code, 0) << r.err;
-    return slurp_text(out);
+    EXPECT_EQ(rs.code, 0) << rs.err;
+    return slurp_text(seeded_path);
   };
   EXPECT_EQ(seeded("1", "seed1.yaml"), text4);
   const std::string text5 = seeded("2", "seed2.yaml");
@@ -1708,10 +1708,10 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
                         0),
             0u)
       << text5;
-  const auto mismatch = [](const std::string& text) {
+  const auto mismatch = [](const std::string& noted) {
     std::smatch m;
-    EXPECT_TRUE(std::regex_search(text, m, std::regex("target mismatch ([0-9.e+-]+) \\(start")))
-        << text;
+    EXPECT_TRUE(std::regex_search(noted, m, std::regex("target mismatch ([0-9.e+-]+) \\(start")))
+        << noted;
     return m.size() > 1 ? m[1].str() : std::string();
   };
   EXPECT_NE(mismatch(text5), mismatch(text4));
@@ -1739,6 +1739,10 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
                  "--draws");
   expect_refused("calibrate-noise --seed 2 --input " + (real / "frames").string() + k,
                  "--seed: only the two-scale structure draws noise (--structure one-field)");
+  // A negative seed would wrap to 2^64 - 1 in CLI11 without a check.
+  expect_refused(
+      "calibrate-noise --structure two-scale --seed -1 --input " + (real / "frames").string() + k,
+      "--seed: must be 0 or more, not -1");
   expect_refused("calibrate-noise --lateral-sigma-px 0 --input " + (real / "frames").string() + k,
                  "--lateral-sigma-px: only the two-scale structure casts the frames (--structure "
                  "one-field)");
