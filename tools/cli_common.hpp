@@ -3,6 +3,7 @@
 
 #include <atomic>
 #include <csignal>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <sstream>
@@ -183,6 +184,18 @@ inline CLI::Option* add_draws_option(CLI::App& app, int& draws, const std::strin
                   what + ": noise draws of each frame read together, so that the statistics "
                          "are the model's expectation rather than one draw's")
       ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+}
+
+/// The --seed option: a seed for std::uint64_t, 0 or more. A negative one is refused by name:
+/// CLI11 would wrap -1 to 2^64 - 1 and run with it without a word.
+inline CLI::Option* add_seed_option(CLI::App& app, std::uint64_t& seed, const std::string& what) {
+  return app.add_option("--seed", seed, what)
+      ->check(CLI::Validator(
+          [](const std::string& v) {
+            return v.rfind('-', 0) == 0 ? "must be 0 or more, not " + v : std::string();
+          },
+          "SEED"))
       ->capture_default_str();
 }
 

@@ -368,17 +368,10 @@ Runner add_calibrate_noise(CLI::App& app) {
       app.add_option("--lateral-sigma-px", o->lateral_sigma_px,
                      "two-scale: the lateral jitter [px] the frames are cast with and the block "
                      "keeps (default: the sr300-one-field preset's estimate; not searched)");
-  // A negative seed is refused: CLI11 would wrap it to a huge unsigned one without a word.
-  CLI::Option* seed =
-      app.add_option("--seed", o->seed,
-                     "two-scale: the seed of the re-renders' noise draws (another seed shows how "
-                     "far the fit moves with the draws alone)")
-          ->check(CLI::Validator(
-              [](const std::string& v) {
-                return v.rfind('-', 0) == 0 ? "must be 0 or more, not " + v : std::string();
-              },
-              "SEED"))
-          ->capture_default_str();
+  CLI::Option* seed = add_seed_option(
+      app, o->seed,
+      "two-scale: the seed of the re-renders' noise draws (another seed shows how far the fit "
+      "moves with the draws alone)");
   add_half_option(app, o->half, "the frames fitted");
   app.add_flag("--no-figures", o->no_figures, "--report without the PNG figures");
   app.add_flag("--quiet", o->quiet, "print nothing on success");

@@ -6,6 +6,7 @@
 #include <memory>
 #include <sstream>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/error.hpp"
@@ -82,7 +83,8 @@ Runner add_synth(CLI::App& app) {
   app.add_option("--noise", o->noise, "axial Gaussian noise sigma [m]")->capture_default_str();
   app.add_option("--samples-per-ball", o->samples_per_ball, "surface samples drawn per ball")
       ->capture_default_str();
-  app.add_option("--seed", o->seed, "seed")->capture_default_str();
+  add_seed_option(app, o->seed,
+                  "seed of the surface samples and their noise (each frame its own, derived)");
   app.add_flag("--force", o->force, "replace an existing output directory");
   app.add_flag("--quiet", o->quiet, "print nothing on success");
   return [o] { return run_synth(*o); };

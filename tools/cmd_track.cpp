@@ -10,15 +10,16 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
 #include "format.hpp"
-#include "params_json.hpp"
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/base_pose.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/frames.hpp"
 #include "linksight/tracker/opencl.hpp"
 #include "linksight/tracker/tracker.hpp"
+#include "params_json.hpp"
 
 namespace linksight::cli {
 namespace fs = std::filesystem;
@@ -291,7 +292,7 @@ Runner add_track(CLI::App& app) {
          "error: a lost frame (empty, all non-finite, fewer points than nodes) aborts with exit 2; "
          "keep: record it (lost=1) and go on")
       ->capture_default_str();
-  app.add_option("--seed", o->seed, "seed of random-sample init")->capture_default_str();
+  add_seed_option(app, o->seed, "seed of random-sample init");
   app.add_option("--base-prior", o->base_prior,
                  "chain-fit: the base's pose per frame, a CSV frame,x_m,y_m,z_m,qw,qx,qy,qz "
                  "(X_CB, camera frame; frame = index in the input's order; as render's "

@@ -1298,6 +1298,10 @@ TEST_F(Cli, SynthAndSimulateWriteTheirDirectoryWhole) {
   expect_refused("synth --samples-per-ball 2000000000", "--samples-per-ball = 2000000000: must be in [1, 100000]");
   expect_refused("synth --frames 1000000000", "--frames = 1000000000: must be in [1, 100000]");
   expect_refused("synth --noise -1", "--noise: must be in [0, 1] m");
+  // A negative seed would wrap to 2^64 - 1 in CLI11 without a check (one option, three
+  // commands: calibrate-noise's is checked with its other flags).
+  expect_refused("synth --seed -1", "--seed: must be 0 or more, not -1");
+  expect_refused("track --seed -3 --input " + dir.string(), "--seed: must be 0 or more, not -3");
   // --out naming a file: refused with or without --force, the file kept.
   std::ofstream(dir / "afile") << "mine";
   for (const std::string force : {"", " --force"}) {
