@@ -1601,7 +1601,12 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("projector: image-left"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("residual correlation at 1..4 px"), std::string::npos);
-  EXPECT_TRUE(fs::exists(dir / "report" / "report.txt"));
+  // The report starts as the block does: what was fitted, and the fit's notes.
+  const std::string block_text = slurp_text(yaml);
+  const std::size_t body = block_text.find("\nnoise:");
+  ASSERT_NE(body, std::string::npos) << block_text;
+  EXPECT_EQ(block_text.rfind("# linksight calibrate-noise: fitted to 11 frames of ", 0), 0u);
+  EXPECT_EQ(slurp_text(dir / "report" / "report.txt").rfind(block_text.substr(0, body + 1), 0), 0u);
   std::ifstream in(dir / "report" / "stats.json");
   const nlohmann::json j = nlohmann::json::parse(in);
   EXPECT_EQ(j["frames"], 11);
