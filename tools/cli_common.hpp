@@ -1,11 +1,14 @@
 #pragma once
-// Pieces that more than one subcommand needs: the --compare list and the plotting scripts.
+// Pieces that more than one subcommand needs: the --compare list, the shared options
+// (--half, --draws, --seed), reading depth frames, and the plotting scripts.
 
 #include <atomic>
+#include <charconv>
 #include <csignal>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -187,13 +190,22 @@ inline CLI::Option* add_draws_option(CLI::App& app, int& draws, const std::strin
       ->capture_default_str();
 }
 
-/// The --seed option: a seed for std::uint64_t, 0 or more. A negative one is refused by name:
-/// CLI11 would wrap -1 to 2^64 - 1 and run with it without a word.
+/// The --seed option: a decimal whole number, 0 to 2^64 - 1. Anything else is refused by
+/// name: CLI11 would wrap -1 (or " -1") to 2^64 - 1, read 010 as octal 8, and cap a number
+/// past 2^64 - 1 at it, each without a word.
 inline CLI::Option* add_seed_option(CLI::App& app, std::uint64_t& seed, const std::string& what) {
   return app.add_option("--seed", seed, what)
-      ->check(CLI::Validator(
-          [](const std::string& v) {
-            return v.rfind('-', 0) == 0 ? "must be 0 or more, not " + v : std::string();
+      ->transform(CLI::Validator(
+          [](std::string& v) {
+            std::uint64_t x = 0;
+            const char* end = v.data() + v.size();
+            const auto [at, ec] = std::from_chars(v.data(), end, x);
+            if (v.empty() || ec != std::errc() || at != end)
+              return "must be a whole number from 0 to " +
+                     std::to_string(std::numeric_limits<std::uint64_t>::max()) + ", not '" + v +
+                     "'";
+            v = std::to_string(x);  // decimal, without leading zeros, for CLI11's conversion
+            return std::string();
           },
           "SEED"))
       ->capture_default_str();

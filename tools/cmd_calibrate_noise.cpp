@@ -51,10 +51,10 @@ std::vector<std::string> structure_names() {
 }
 
 // What was fitted: the frames, and the options that chose the fit where they are not the
-// defaults; with the fit's notes (structure, draws, sweeps), the block's header and the
-// report's first lines, so that either says how to make it again.
-std::string fit_header(const sim::NoiseFit& fit, const std::string& source, int frames,
-                       const std::string& half, std::uint64_t seed) {
+// defaults. The block's first line and the report's, so that either says how to make it
+// again (the fit's notes follow it in the block, and close the report).
+std::string fit_source_line(const std::string& source, int frames, const std::string& half,
+                            std::uint64_t seed) {
   std::ostringstream h;
   h << "# linksight calibrate-noise: fitted to " << frames << " frames of " << source;
   std::vector<std::string> chosen;
@@ -63,13 +63,14 @@ std::string fit_header(const sim::NoiseFit& fit, const std::string& source, int 
   for (std::size_t i = 0; i < chosen.size(); ++i)
     h << (i == 0 ? " (" : ", ") << chosen[i] << (i + 1 == chosen.size() ? ")" : "");
   h << "\n";
-  for (const std::string& note : fit.notes) h << "# note: " << note << "\n";
   return h.str();
 }
 
-std::string noise_yaml(const sim::NoiseFit& fit, const std::string& header) {
+std::string noise_yaml(const sim::NoiseFit& fit, const std::string& source_line) {
+  std::string y = source_line;
+  for (const std::string& note : fit.notes) y += "# note: " + note + "\n";
   fit.params.validate();  // a fit outside the model's ranges would write a block no scene loads
-  return header + sim::noise_yaml(fit.params);  // every term in full: reads back the same
+  return y + sim::noise_yaml(fit.params);  // every term in full: reads back the same
 }
 
 nlohmann::json stats_json(const sim::DepthStats& s) {
@@ -166,9 +167,9 @@ nlohmann::json figure_series(const sim::DepthStats& s, const sim::NoiseFit& fit,
   return {{"series", {{"recording", stats_series(s)}, {"fitted model + surface shape", model}}}};
 }
 
-void print_report(std::ostream& os, const std::string& header, const sim::DepthStats& s,
+void print_report(std::ostream& os, const std::string& source_line, const sim::DepthStats& s,
                   const sim::NoiseFit& fit, const sim::DepthStats* shape) {
-  os << header << std::fixed;
+  os << source_line << std::fixed;
   os << s.frames << " frames, " << s.valid_px << " valid pixels, " << s.windows
      << " flat 15x15 windows; depth step " << std::setprecision(3) << s.depth_step * 1e3
      << " mm\n\nplane-fit sigma by depth (incidence < 30 deg); shape: the same on the frames' "
@@ -311,14 +312,14 @@ int run_calibrate(const CalibrateOptions& o) {
     fit = sim::fit_noise(stats, sim::NoiseParams::sr300_one_field(), shape_p, structure);
   }
   io::StagedFiles out;
-  const std::string header = fit_header(fit, o.input, stats.frames, o.half, o.seed);
-  out.open(o.out) << noise_yaml(fit, header);
+  const std::string source_line = fit_source_line(o.input, stats.frames, o.half, o.seed);
+  out.open(o.out) << noise_yaml(fit, source_line);
   if (!o.report.empty()) {
     std::error_code ec;
     fs::create_directories(o.report, ec);
     if (ec) throw io::InputError(o.report + ": cannot create report directory: " + ec.message());
     std::ostringstream text;
-    print_report(text, header, stats, fit, shape_p);
+    print_report(text, source_line, stats, fit, shape_p);
     out.open(fs::path(o.report) / "report.txt") << text.str();
     out.open(fs::path(o.report) / "stats.json") << stats_json(stats).dump(2) << "\n";
     out.open(fs::path(o.report) / "calibration.json")
@@ -333,7 +334,7 @@ int run_calibrate(const CalibrateOptions& o) {
         o.quiet);
   if (!warn.empty()) std::cerr << "linksight calibrate-noise: " << warn << "\n";
   if (!o.quiet) {
-    print_report(std::cout, header, stats, fit, shape_p);
+    print_report(std::cout, source_line, stats, fit, shape_p);
     std::cout << "\nwrote " << o.out << " (a noise: block for a scene file)";
     if (!o.report.empty())
       std::cout << ", " << o.report << "/report.txt, stats.json, calibration.json, figures/";

@@ -1298,10 +1298,26 @@ TEST_F(Cli, SynthAndSimulateWriteTheirDirectoryWhole) {
   expect_refused("synth --samples-per-ball 2000000000", "--samples-per-ball = 2000000000: must be in [1, 100000]");
   expect_refused("synth --frames 1000000000", "--frames = 1000000000: must be in [1, 100000]");
   expect_refused("synth --noise -1", "--noise: must be in [0, 1] m");
-  // A negative seed would wrap to 2^64 - 1 in CLI11 without a check (one option, three
-  // commands: calibrate-noise's is checked with its other flags).
-  expect_refused("synth --seed -1", "--seed: must be 0 or more, not -1");
-  expect_refused("track --seed -3 --input " + dir.string(), "--seed: must be 0 or more, not -3");
+  // --seed (one option, three commands; calibrate-noise's is checked with its other flags):
+  // a decimal whole number that fits 64 bits. CLI11 alone would wrap a negative one to
+  // 2^64 - 1, read a leading 0 as octal and cap one past 2^64 - 1, each without a word.
+  const std::string kSeedRange = "--seed: must be a whole number from 0 to 18446744073709551615";
+  expect_refused("synth --seed -1", kSeedRange + ", not '-1'");
+  expect_refused("synth --seed ' -1'", kSeedRange + ", not ' -1'");
+  expect_refused("synth --seed 18446744073709551616", kSeedRange + ", not '18446744073709551616'");
+  expect_refused("synth --seed 1.5", kSeedRange + ", not '1.5'");
+  expect_refused("track --seed -3 --input " + dir.string(), kSeedRange + ", not '-3'");
+  // The ends of the range are seeds, and a leading 0 is decimal: 010 draws as 10 does.
+  const auto synth_frame = [&](const std::string& seed) {
+    const CliRun s =
+        run("synth --quiet --frames 1 --force --seed " + seed + " --out " + out.string(), dir);
+    EXPECT_EQ(s.code, 0) << s.err;
+    return slurp_text(out / "frame_0000.ply");
+  };
+  EXPECT_NE(synth_frame("0"), synth_frame("18446744073709551615"));
+  EXPECT_EQ(synth_frame("010"), synth_frame("10"));
+  EXPECT_NE(synth_frame("010"), synth_frame("8"));
+  fs::remove_all(out);
   // --out naming a file: refused with or without --force, the file kept.
   std::ofstream(dir / "afile") << "mine";
   for (const std::string force : {"", " --force"}) {
@@ -1601,12 +1617,19 @@ TEST_F(Cli, CalibrateNoiseWritesANoiseBlockAScenesAccepts) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("projector: image-left"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("residual correlation at 1..4 px"), std::string::npos);
-  // The report starts as the block does: what was fitted, and the fit's notes.
+  // The report, written and printed, starts as the block does: what was fitted. The fit's
+  // notes follow that line in the block and close the report, once each.
   const std::string block_text = slurp_text(yaml);
-  const std::size_t body = block_text.find("\nnoise:");
-  ASSERT_NE(body, std::string::npos) << block_text;
-  EXPECT_EQ(block_text.rfind("# linksight calibrate-noise: fitted to 11 frames of ", 0), 0u);
-  EXPECT_EQ(slurp_text(dir / "report" / "report.txt").rfind(block_text.substr(0, body + 1), 0), 0u);
+  const std::string source_line = block_text.substr(0, block_text.find('\n') + 1);
+  EXPECT_EQ(source_line, "# linksight calibrate-noise: fitted to 11 frames of " +
+                             (real / "frames").string() + "\n");
+  const std::string report = slurp_text(dir / "report" / "report.txt");
+  EXPECT_EQ(report.rfind(source_line, 0), 0u) << report;
+  EXPECT_EQ(r.out.rfind(source_line, 0), 0u) << r.out;
+  const std::string a_note = "edges.drop_steps on: ";
+  EXPECT_NE(block_text.find("# note: " + a_note), std::string::npos) << block_text;
+  EXPECT_NE(report.find(a_note), std::string::npos) << report;
+  EXPECT_EQ(report.find(a_note), report.rfind(a_note)) << report;
   std::ifstream in(dir / "report" / "stats.json");
   const nlohmann::json j = nlohmann::json::parse(in);
   EXPECT_EQ(j["frames"], 11);
@@ -1751,7 +1774,7 @@ TEST_F(Cli, CalibrateNoiseBadInputIsNamed) {
   // A negative seed would wrap to 2^64 - 1 in CLI11 without a check.
   expect_refused(
       "calibrate-noise --structure two-scale --seed -1 --input " + (real / "frames").string() + k,
-      "--seed: must be 0 or more, not -1");
+      "--seed: must be a whole number from 0 to 18446744073709551615, not '-1'");
   expect_refused("calibrate-noise --lateral-sigma-px 0 --input " + (real / "frames").string() + k,
                  "--lateral-sigma-px: only the two-scale structure casts the frames (--structure "
                  "one-field)");
