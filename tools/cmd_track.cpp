@@ -271,7 +271,10 @@ Runner add_track(CLI::App& app) {
          "--cl-accumulation", o->cl_accumulation,
          "opencl: reduction (per-work-group partial sums) | atomic (the paper's global atomics)")
       ->capture_default_str();
+  // Checked here as well as by OpenCLOptions::validate: CLI11 would wrap -1 to 2^64 - 1,
+  // and the library's message would name that instead of what was typed.
   app.add_option("--cl-work-group", o->cl_work_group, "opencl: work-group size (0: auto)")
+      ->check(CLI::Range(std::size_t{0}, kMaxClWorkGroupSize))
       ->capture_default_str();
   app.add_option("--threads", o->threads, "threads of parallel back ends (0: one per core)")
       ->capture_default_str();

@@ -1307,6 +1307,9 @@ TEST_F(Cli, SynthAndSimulateWriteTheirDirectoryWhole) {
   expect_refused("synth --seed 18446744073709551616", kSeedRange + ", not '18446744073709551616'");
   expect_refused("synth --seed 1.5", kSeedRange + ", not '1.5'");
   expect_refused("track --seed -3 --input " + dir.string(), kSeedRange + ", not '-3'");
+  // So would --cl-work-group -1, and OpenCLOptions' own check would then name 2^64 - 1.
+  expect_refused("track --cl-work-group -1 --input " + dir.string(),
+                 "--cl-work-group: Value -1 not in range 0 to 4096");
   // The ends of the range are seeds, and a leading 0 is decimal: 010 draws as 10 does.
   const auto synth_frame = [&](const std::string& seed) {
     const CliRun s =

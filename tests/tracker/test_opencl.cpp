@@ -114,6 +114,8 @@ TEST(OpenCL, SelectionErrorsSayWhatExists) {
   OpenCLOptions w;
   w.work_group_size = 5000;
   EXPECT_THROW(w.validate(), std::invalid_argument);
+  const std::string wide = test::error_of([&] { w.validate(); });
+  EXPECT_NE(wide.find("work_group_size = 5000: must be <= 4096"), std::string::npos) << wide;
   // Device names match case-insensitively.
   OpenCLOptions c;
   c.device = opencl_devices().front().name.substr(0, 4);

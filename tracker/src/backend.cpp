@@ -58,9 +58,10 @@ void OpenCLOptions::validate() const {
     throw std::invalid_argument("OpenCLOptions.platform = " + std::to_string(platform) +
                                 ": must be >= 0, or -1 for any");
   }
-  if (work_group_size > 4096) {
-    throw std::invalid_argument("OpenCLOptions.work_group_size = " +
-                                std::to_string(work_group_size) + ": must be <= 4096 (0: auto)");
+  if (work_group_size > kMaxClWorkGroupSize) {
+    throw std::invalid_argument(
+        "OpenCLOptions.work_group_size = " + std::to_string(work_group_size) +
+        ": must be <= " + std::to_string(kMaxClWorkGroupSize) + " (0: auto)");
   }
 }
 

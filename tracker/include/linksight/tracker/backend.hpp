@@ -38,6 +38,9 @@ enum class ClAccumulation {
 [[nodiscard]] std::string_view to_string(ClAccumulation accumulation);
 [[nodiscard]] ClAccumulation parse_cl_accumulation(std::string_view name);
 
+/// The largest OpenCLOptions::work_group_size accepted (no device offers more).
+inline constexpr std::size_t kMaxClWorkGroupSize = 4096;
+
 /// Where and how the OpenCL back end runs.
 struct OpenCLOptions {
   int platform = -1;   ///< platform index; -1: any
