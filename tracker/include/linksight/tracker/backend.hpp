@@ -38,7 +38,8 @@ enum class ClAccumulation {
 [[nodiscard]] std::string_view to_string(ClAccumulation accumulation);
 [[nodiscard]] ClAccumulation parse_cl_accumulation(std::string_view name);
 
-/// The largest OpenCLOptions::work_group_size accepted (no device offers more).
+/// The largest OpenCLOptions::work_group_size validate() accepts; the device's own, often
+/// lower, limit is checked when the back end is made.
 inline constexpr std::size_t kMaxClWorkGroupSize = 4096;
 
 /// Where and how the OpenCL back end runs.
