@@ -57,7 +57,7 @@ Estimate parse_estimate(const std::string& text) {
   const std::size_t eq = text.find('=');
   const std::string name = text.substr(0, eq);
   if (eq == std::string::npos || eq + 1 == text.size())
-    throw std::invalid_argument("--estimate '" + text + "': expected NAME=FILE");
+    throw std::invalid_argument("--estimate '" + io::echo(text) + "': expected NAME=FILE");
   bool ok = !name.empty() && name.size() <= 40 && name != "truth";
   for (const char c : name)
     ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.');
@@ -91,7 +91,7 @@ std::vector<double> read_occlusion(const fs::path& path, std::size_t frames, int
       const auto res = std::from_chars(s.data(), s.data() + s.size(), v[c]);
       if (res.ec != std::errc() || res.ptr != s.data() + s.size() || v[c] < 0 ||
           v[c] > 1'000'000'000)
-        throw io::InputError(where + names[c] + " '" + s + "' is not a count");
+        throw io::InputError(where + names[c] + " '" + io::echo(s) + "' is not a count");
     }
     const auto f = static_cast<std::size_t>(v[0]), k = static_cast<std::size_t>(v[1]);
     if (f >= frames)
@@ -137,7 +137,7 @@ std::vector<double> read_truth_times(const fs::path& path, std::size_t frames) {
     (void)std::from_chars(fs.data(), fs.data() + fs.size(), f);
     const auto res = std::from_chars(ts.data(), ts.data() + ts.size(), v);
     if (res.ec != std::errc() || res.ptr != ts.data() + ts.size() || !std::isfinite(v))
-      throw io::InputError(file + ":" + std::to_string(t.lines[r]) + ": t_s '" + ts +
+      throw io::InputError(file + ":" + std::to_string(t.lines[r]) + ": t_s '" + io::echo(ts) +
                            "' is not a finite number");
     if (f < frames) out[f] = v;
   }

@@ -66,23 +66,23 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     std::string what = e.what();
     for (char& c : what)
-      if (c == '\n') c = ' ';
-    std::cerr << "linksight: " << what << " (see linksight --help)\n";
+      if (c == '\n') c = ' ';  // CLI11's own line breaks
+    std::cerr << "linksight: " << linksight::io::printable_line(what) << " (see linksight --help)\n";
     return kExitBadInput;
   }
   try {
     for (const CLI::App* sub : app.get_subcommands()) return runners.at(sub)();
   } catch (const linksight::io::InputError& e) {
-    std::cerr << "linksight: " << e.what() << "\n";
+    std::cerr << "linksight: " << linksight::io::printable_line(e.what()) << "\n";
     return kExitBadInput;
   } catch (const linksight::BackendUnavailable& e) {
-    std::cerr << "linksight: " << e.what() << "\n";
+    std::cerr << "linksight: " << linksight::io::printable_line(e.what()) << "\n";
     return kExitBadInput;
   } catch (const std::invalid_argument& e) {
-    std::cerr << "linksight: " << e.what() << "\n";
+    std::cerr << "linksight: " << linksight::io::printable_line(e.what()) << "\n";
     return kExitBadInput;
   } catch (const std::exception& e) {
-    std::cerr << "linksight: internal error: " << e.what() << "\n";
+    std::cerr << "linksight: internal error: " << linksight::io::printable_line(e.what()) << "\n";
     return kExitInternal;
   }
   return kExitInternal;

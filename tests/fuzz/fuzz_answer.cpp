@@ -1,5 +1,6 @@
 // An external tracker's answer line (docs/protocol.md): never throws; nodes are given
-// only for a well-formed answer, then the asked count of finite nodes within 100 m.
+// only for a well-formed answer, then the asked count of finite nodes within 100 m; a lost
+// answer's reason is one printable line.
 #include <cmath>
 
 #include "fuzz_support.hpp"
@@ -17,6 +18,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           fuzz::finding("an answer taken with a node beyond 100 m or not finite");
     } else if (!a.nodes.empty()) {
       fuzz::finding("a lost answer with nodes");
+    } else {
+      fuzz::expect_printable(a.lost);
     }
   } catch (const std::exception& e) {
     fuzz::finding(std::string("parse_external_answer threw: ") + e.what());

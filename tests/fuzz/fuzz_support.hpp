@@ -2,7 +2,7 @@
 // One fuzz target per reader of outside bytes (issue 19, part 1). Each defines
 // LLVMFuzzerTestOneInput and asserts the contract, not only "no crash": the reader either
 // returns a result that passes its checks, or throws the project's io::InputError with a
-// message that names the input. Anything else (another exception, a message that does
+// message that names the input and prints as one line. Anything else (another exception, a message that does
 // not name the file, a result that breaks its own invariants) aborts, which libFuzzer and
 // the corpus replay (replay_main.cpp) report as a finding.
 #include <unistd.h>
@@ -55,6 +55,13 @@ inline std::filesystem::path write_input(const std::string& name, const std::uin
   std::abort();
 }
 
+/// A refusal must print as one line of bounded length with no control byte
+/// (io::printable_line, docs/reliability.md "Echoing input").
+inline void expect_printable(std::string_view message) {
+  if (!io::is_printable_line(message))
+    finding("a message that is not one printable line: " + io::printable_line(message));
+}
+
 /// Runs `read`; an io::InputError must name `input`, any other exception is a finding.
 template <class F>
 void expect_named(const std::string& input, F&& read) {
@@ -64,6 +71,7 @@ void expect_named(const std::string& input, F&& read) {
     const std::string_view what = e.what();
     if (what.find(input) == std::string_view::npos)
       finding("an error that does not name " + input + ": " + std::string(what));
+    expect_printable(what);
   } catch (const std::exception& e) {
     finding(std::string("not io::InputError: ") + typeid(e).name() + ": " + e.what());
   }

@@ -17,6 +17,7 @@
 #include "linksight/io/depth_png.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/intrinsics.hpp"
+#include "linksight/io/json_input.hpp"
 #include "linksight/io/ply.hpp"
 
 // A private copy of stb (static functions): tracker_io has its own.
@@ -164,11 +165,10 @@ namespace {
 // A JSON file of a recording, or an error naming it.
 nlohmann::json read_json(const fs::path& path) {
   const std::string file = path.string();
-  std::ifstream in(path);
-  if (!in) throw io::InputError(file + ": cannot open (a recording from `linksight render`)");
+  const std::string text = io::read_json_file(path, "cannot open (a recording from `linksight render`)");
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     throw io::InputError(file + ": malformed JSON: " + e.what());
   }
@@ -186,11 +186,11 @@ struct ChainJsonIn {
     const auto it = j.find(key);
     if (it == j.end()) throw io::InputError(file + ": no key '" + key + "'");
     if (!it->is_number())
-      throw io::InputError(file + ": " + key + " = " + it->dump() + ": not a number");
+      throw io::InputError(file + ": " + key + " = " + io::json_summary(*it) + ": not a number");
     const double x = it->get<double>();
     if constexpr (std::is_integral_v<T>) {
       if (!(x >= -1e9 && x <= 1e9) || x != std::floor(x))
-        throw io::InputError(file + ": " + key + " = " + it->dump() + ": not a whole number");
+        throw io::InputError(file + ": " + key + " = " + io::json_summary(*it) + ": not a whole number");
       v = static_cast<T>(x);
     } else {
       v = x;
@@ -205,7 +205,7 @@ double read_camera_fps(const fs::path& path) {
   const auto it = j.find("fps");
   if (it == j.end()) throw io::InputError(path.string() + ": no key 'fps'");
   if (!it->is_number() || !(it->get<double>() > 0 && it->get<double>() <= 10000))
-    throw io::InputError(path.string() + ": fps = " + it->dump() + ": must be in (0, 10000]");
+    throw io::InputError(path.string() + ": fps = " + io::json_summary(*it) + ": must be in (0, 10000]");
   return it->get<double>();
 }
 
@@ -221,7 +221,7 @@ ComponentGeometry read_chain_json(const fs::path& path) {
   g.fields(reader);
   for (const auto& item : j.items())
     if (!reader.seen.count(item.key()))
-      throw io::InputError(file + ": unknown key '" + item.key() + "'");
+      throw io::InputError(file + ": unknown key '" + io::echo(item.key()) + "'");
   try {
     g.validate();
   } catch (const std::invalid_argument& e) {

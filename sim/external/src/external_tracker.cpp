@@ -24,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linksight/io/chain_json.hpp"
+#include "linksight/io/json_input.hpp"
 #include "linksight/tracker/backend.hpp"
 #include "linksight/tracker/format.hpp"
 #include "linksight/tracker/mode.hpp"
@@ -47,13 +48,14 @@ int ms_left(double deadline) {
 constexpr std::size_t kMaxAnswer = kMaxAnswerBytes;
 // What an error quotes of the tracker's stderr, and of an answer that is not JSON.
 constexpr int kStderrLines = 8;
+constexpr std::size_t kStderrLineBytes = 200;
 constexpr std::size_t kQuote = 80;
 
 std::string quote_answer(const std::string& s) {
-  std::string q = s.substr(0, kQuote);
-  for (char& c : q)
-    if (static_cast<unsigned char>(c) < 0x20) c = ' ';
-  return "'" + q + (s.size() > kQuote ? "...'" : "'");
+  std::string q = "'";
+  q += io::echo(s, kQuote);
+  q += '\'';
+  return q;
 }
 
 // SIGPIPE blocked on this thread while it writes (a closed pipe is then EPIPE, not the
@@ -247,13 +249,13 @@ std::string ExternalTracker::stderr_tail() const {
   std::vector<std::string> lines;
   std::stringstream ss(text);
   for (std::string l; std::getline(ss, l);) {
-    if (l.size() > 200) l = l.substr(0, 200) + "...";
-    lines.push_back(l);
+    lines.push_back(io::echo(l, kStderrLineBytes));
     if (lines.size() > kStderrLines) lines.erase(lines.begin());
   }
   if (lines.empty()) return "; its stderr is empty";
-  std::string out = "; its stderr ends:";
-  for (const std::string& l : lines) out += "\n  " + l;
+  // One line, as every message (io::printable_line): its lines joined by " | ".
+  std::string out = "; its stderr ends: ";
+  for (std::size_t k = 0; k < lines.size(); ++k) out += (k ? " | " : "") + lines[k];
   return out;
 }
 
@@ -387,12 +389,13 @@ FrameResult ExternalTracker::step(const ExternalFrameInput& in) {
   bool parsed = false;
   for (;;) {
     line = read_line(deadline, in.frame);
-    try {
-      a = nlohmann::json::parse(line);
-      parsed = true;
-    } catch (const nlohmann::json::exception&) {
-      parsed = false;
-    }
+    parsed = false;
+    // Too deep a line is not parsed at all: parse_external_answer says why.
+    if (io::json_too_deep_at(line) == std::string_view::npos) try {
+        a = nlohmann::json::parse(line);
+        parsed = true;
+      } catch (const nlohmann::json::exception&) {
+      }
     if (!(parsed && a.is_object())) break;
     const auto f = a.find("frame");
     if (f == a.end() || !f->is_number_integer() || f->get<long long>() >= in.frame) break;
@@ -443,15 +446,15 @@ ExternalAnswer answer_from_json(const nlohmann::json& a, const std::string& line
   for (std::size_t j = 0; j < nodes->size(); ++j) {
     const nlohmann::json& q = (*nodes)[j];
     if (!q.is_array() || q.size() != 3)
-      return lost("node " + std::to_string(j) + " is not [x, y, z]: " + quote_answer(q.dump()));
+      return lost("node " + std::to_string(j) + " is not [x, y, z]: " + io::json_summary(q));
     for (int c = 0; c < 3; ++c) {
       if (!q[static_cast<std::size_t>(c)].is_number())
         return lost("node " + std::to_string(j) + " is not [x, y, z] of numbers: " +
-                    quote_answer(q.dump()));
+                    io::json_summary(q));
       const double v = q[static_cast<std::size_t>(c)].get<double>();
       if (!std::isfinite(v) || std::abs(v) > kMaxCoordinate)
         return lost("node " + std::to_string(j) + " has a coordinate that is not a finite " +
-                    "number within 100 m: " + quote_answer(q.dump()));
+                    "number within 100 m: " + io::json_summary(q));
       out.nodes[j][c] = v;
     }
   }
@@ -462,6 +465,12 @@ ExternalAnswer answer_from_json(const nlohmann::json& a, const std::string& line
 }  // namespace
 
 ExternalAnswer parse_external_answer(const std::string& line, long long frame, int nodes) {
+  if (const std::size_t at = io::json_too_deep_at(line); at != std::string_view::npos) {
+    ExternalAnswer out;
+    out.lost = "the answer nests deeper than " + std::to_string(io::kMaxJsonDepth) +
+               " levels (byte " + std::to_string(at) + "): " + quote_answer(line);
+    return out;
+  }
   nlohmann::json a;
   try {
     a = nlohmann::json::parse(line);

@@ -124,7 +124,7 @@ void read_camera(const Reader& r, const YAML::Node& c, CameraParams& cam) {
   if (const YAML::Node p = c["preset"]) {
     const std::string name = r.text(p, "camera.preset");
     if (name != "sr300")
-      r.fail(p, "camera.preset", "unknown camera preset '" + name + "' (expected sr300)");
+      r.fail(p, "camera.preset", "unknown camera preset '" + io::echo(name) + "' (expected sr300)");
   }
   if (const YAML::Node l = c["look_at"]) {
     r.only(l, "camera.look_at", {"eye_m", "target_m", "up"});

@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "linksight/io/echo.hpp"
+
 namespace linksight::sim {
 
 std::string_view to_string(AxialKernel kernel) {
@@ -82,7 +84,7 @@ NoiseParams NoiseParams::preset(const std::string& name) {
   std::string expected;
   for (std::size_t k = 0; k < names.size(); ++k)
     expected += (k == 0 ? "" : k + 1 == names.size() ? " or " : ", ") + names[k];
-  throw std::invalid_argument("noise preset '" + name + "': expected " + expected);
+  throw std::invalid_argument("noise preset '" + io::echo(name) + "': expected " + expected);
 }
 
 void NoiseParams::validate() const {

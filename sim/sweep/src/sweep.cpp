@@ -18,6 +18,7 @@
 
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/error.hpp"
+#include "linksight/io/json_input.hpp"
 #include "linksight/sim/episode.hpp"
 #include "linksight/sim/scene.hpp"
 #include "linksight/io/csv.hpp"
@@ -65,7 +66,7 @@ std::size_t parse_index(const std::string& s, const fs::path& path) {
   std::size_t v = 0;
   const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   if (r.ec != std::errc() || r.ptr != s.data() + s.size())
-    throw io::InputError(path.string() + ": cell '" + s + "' is not an index");
+    throw io::InputError(path.string() + ": cell '" + io::echo(s) + "' is not an index");
   return v;
 }
 
@@ -113,14 +114,14 @@ bool is_shard_file_name(const std::string& name) {
 SweepAxis parse_axis(const std::string& arg) {
   const auto eq = arg.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw io::InputError("--axis '" + arg + "': expected key=v1,v2,...");
+    throw io::InputError("--axis '" + io::echo(arg) + "': expected key=v1,v2,...");
   SweepAxis a;
   a.key = trim(arg.substr(0, eq));
   for (const std::string& v : io::split(arg.substr(eq + 1), ',')) {
-    if (trim(v).empty()) throw io::InputError("--axis '" + arg + "': empty value");
+    if (trim(v).empty()) throw io::InputError("--axis '" + io::echo(arg) + "': empty value");
     a.values.push_back(trim(v));
   }
-  if (a.values.empty()) throw io::InputError("--axis '" + arg + "': no values");
+  if (a.values.empty()) throw io::InputError("--axis '" + io::echo(arg) + "': no values");
   return a;
 }
 
@@ -378,14 +379,16 @@ void write_manifest(const fs::path& dir, const SweepSpec& spec) {
   if (fs::exists(path)) {
     const SweepSpec have = read_manifest(dir);
     const nlohmann::json got = manifest_json(have);
-    // `external` is there only when a sweep has external trackers.
+    // `external` is there only when a sweep has external trackers. Both documents are
+    // manifest_json's own (3 levels deep), so a dump is safe; echo bounds its length.
     const auto at = [](const nlohmann::json& j, const char* field) {
       return j.contains(field) ? j.at(field) : nlohmann::json(nullptr);
     };
     for (const char* field : {"scene", "axes", "set", "modes", "scene_mode", "external", "frames"}) {
       if (at(got, field) != at(want, field))
         throw io::InputError(path.string() + " describes another sweep: " + field + " is " +
-                             at(got, field).dump() + ", this run has " + at(want, field).dump() +
+                             io::echo(at(got, field).dump()) + ", this run has " +
+                             io::echo(at(want, field).dump()) +
                              " (use another --out, or --force to start over)");
     }
     return;
@@ -395,10 +398,10 @@ void write_manifest(const fs::path& dir, const SweepSpec& spec) {
 
 SweepSpec read_manifest(const fs::path& dir) {
   const fs::path path = dir / kManifest;
-  std::ifstream in(path);
-  if (!in) throw io::InputError(path.string() + ": no sweep manifest here (not a sweep directory?)");
+  const std::string text =
+      io::read_json_file(path, "no sweep manifest here (not a sweep directory?)");
   try {
-    const nlohmann::json j = nlohmann::json::parse(in);
+    const nlohmann::json j = nlohmann::json::parse(text);
     // An integer JSON value, checked first: get<int>() of 2e35 is undefined behaviour
     // (found by fuzz_shard).
     const auto integer = [&](const char* key, long long hi) {
@@ -408,13 +411,13 @@ SweepSpec read_manifest(const fs::path& dir) {
                           : v.is_number_integer() && v.get<long long>() >= 0 &&
                                 v.get<long long>() <= hi;
       if (!ok)
-        throw io::InputError(path.string() + ": " + key + " " + v.dump() +
+        throw io::InputError(path.string() + ": " + key + " " + io::json_summary(v) +
                              ": expected an integer in [0, " + std::to_string(hi) + "]");
       return v.get<long long>();
     };
     constexpr long long kIntMax = std::numeric_limits<int>::max();
     if (integer("version", kIntMax) != kManifestVersion)
-      throw io::InputError(path.string() + ": version " + j.at("version").dump() +
+      throw io::InputError(path.string() + ": version " + io::json_summary(j.at("version")) +
                            ", expected " + std::to_string(kManifestVersion));
     SweepSpec s;
     s.scene = j.at("scene").get<std::string>();
@@ -431,7 +434,7 @@ SweepSpec read_manifest(const fs::path& dir) {
     s.validate();
     if (static_cast<std::size_t>(integer("cells", std::numeric_limits<long long>::max())) !=
         s.cells())
-      throw io::InputError(path.string() + ": cells " + j.at("cells").dump() +
+      throw io::InputError(path.string() + ": cells " + io::json_summary(j.at("cells")) +
                            " does not match its axes (" + std::to_string(s.cells()) + ")");
     return s;
   } catch (const nlohmann::json::exception& e) {
@@ -522,13 +525,13 @@ void check_shard_row(const SweepSpec& spec, const std::vector<std::string>& head
   const std::string at = path.string() + ":" + std::to_string(line) + ": ";
   const std::size_t cell = parse_index(row[0], path);
   if (cell >= spec.cells())
-    throw io::InputError(at + "cell " + row[0] + " is beyond the grid's " +
+    throw io::InputError(at + "cell " + io::echo(row[0]) + " is beyond the grid's " +
                          std::to_string(spec.cells()) + " cells");
   const std::vector<std::string> values = cell_values(spec, cell);
   for (std::size_t k = 0; k < values.size(); ++k)
     if (row[2 + k] != values[k])
       throw io::InputError(at + "cell " + row[0] + "'s " + header[2 + k] + " is '" +
-                           row[2 + k] + "', this sweep's grid has '" + values[k] +
+                           io::echo(row[2 + k]) + "', this sweep's grid has '" + io::echo(values[k]) +
                            "' (a shard of another sweep?)");
   bool known = spec.modes.empty() && spec.scene_mode;  // the scene's own mode: any mode
   if (known) {
@@ -541,14 +544,14 @@ void check_shard_row(const SweepSpec& spec, const std::vector<std::string>& head
   for (const TrackerMode m : spec.modes) known = known || row[1] == to_string(m);
   for (const ExternalTrackerSpec& e : spec.external) known = known || row[1] == e.name;
   if (!known)
-    throw io::InputError(at + "tracker '" + row[1] + "' is not one this sweep compares " +
+    throw io::InputError(at + "tracker '" + io::echo(row[1]) + "' is not one this sweep compares " +
                          "(a shard of another sweep?)");
   if (spec.frames > 0) {
     const auto f = std::find(header.begin(), header.end(), "frames");
     if (f != header.end() &&
         row[static_cast<std::size_t>(f - header.begin())] != std::to_string(spec.frames))
       throw io::InputError(at + "cell " + row[0] + " ran " +
-                           row[static_cast<std::size_t>(f - header.begin())] +
+                           io::echo(row[static_cast<std::size_t>(f - header.begin())]) +
                            " frames, this sweep runs " + std::to_string(spec.frames) +
                            " (a shard of another sweep?)");
   }
@@ -649,7 +652,7 @@ MergeResult merge_sweep(const fs::path& dir) {
       for (const auto& row : failed.rows) {
         const std::size_t cell = parse_index(row[0], failed_file(path));
         if (cell >= spec.cells())
-          throw io::InputError(failed_file(path).string() + ": cell " + row[0] +
+          throw io::InputError(failed_file(path).string() + ": cell " + io::echo(row[0]) +
                                " is beyond the grid's " + std::to_string(spec.cells()) + " cells");
         result.failed.push_back({cell, row[1]});
       }

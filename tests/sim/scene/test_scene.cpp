@@ -5,7 +5,9 @@
 #include <fstream>
 #include <limits>
 #include <set>
+#include <vector>
 
+#include "linksight/io/echo.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/sim/scene.hpp"
 #include "linksight/sim/yaml.hpp"
@@ -114,6 +116,18 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
   EXPECT_NE(error_of("[1, 2]: 3\n").find(":1: (top level): a key must be a plain name"),
             std::string::npos);
   EXPECT_EQ(error_of("duration_s: 1\n"), "no error");
+  // Issue 59: a key's control bytes are escaped, never sent to the terminal: a newline
+  // (two lines), an escape that clears the screen, a carriage return that overwrites the
+  // message with the attacker's own, and a right-to-left override. A long key is cut.
+  has("\"a\\nb\": 1\n", ":1: a\\nb: unknown key");
+  has("\"k\\e[2J\\rlinksight: all good\": 1\n", ":1: k\\x1B[2J\\rlinksight: all good: unknown key");
+  has("\"x\\u202Ey\": 1\n", ":1: x\\u{202E}y: unknown key");
+  for (const std::string& key : std::vector<std::string>{"\"a\\nb\": 1\n", "\"\\e[2J\\r\": 1\n",
+                                                      "\"" + std::string(5000, 'k') + "\": 1\n"}) {
+    const std::string e = error_of(key);
+    EXPECT_TRUE(io::is_printable_line(e)) << e;
+    EXPECT_LE(e.size(), 600u) << e;
+  }
   // Issue 19: a key given twice (yaml-cpp keeps both; the first would win, silently).
   has("seed: 1\nduration_s: 1\nseed: 2\n", ":3: seed: given twice");
   has("chain:\n  count: 11\n  count: 5\n", ":3: chain.count: given twice");

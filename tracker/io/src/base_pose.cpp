@@ -46,9 +46,9 @@ std::vector<Eigen::Isometry3d> read_base_poses(const std::filesystem::path& path
     std::size_t c = 0;
     while (c < kColumns.size() && t.header[h] != kColumns[c]) ++c;
     if (c == kColumns.size())
-      throw InputError(file + ":1: unknown column '" + t.header[h] +
+      throw InputError(file + ":1: unknown column '" + echo(t.header[h]) +
                        "' (expected frame,x_m,y_m,z_m,qw,qx,qy,qz)");
-    if (found[c]) throw InputError(file + ":1: column '" + t.header[h] + "' given twice");
+    if (found[c]) throw InputError(file + ":1: column '" + echo(t.header[h]) + "' given twice");
     found[c] = true;
     at[c] = h;
   }
@@ -64,7 +64,7 @@ std::vector<Eigen::Isometry3d> read_base_poses(const std::filesystem::path& path
     std::size_t frame = 0;
     const auto res = std::from_chars(fs.data(), fs.data() + fs.size(), frame);
     if (res.ec != std::errc() || res.ptr != fs.data() + fs.size())
-      throw InputError(where + "frame '" + fs + "' is not a frame index");
+      throw InputError(where + "frame '" + echo(fs) + "' is not a frame index");
     if (frame >= frames)
       throw InputError(where + "frame " + fs + " is not among the " + std::to_string(frames) +
                        " input frames");
@@ -78,7 +78,7 @@ std::vector<Eigen::Isometry3d> read_base_poses(const std::filesystem::path& path
       double x = 0;
       const auto rv = std::from_chars(s.data(), s.data() + s.size(), x);
       if (rv.ec != std::errc() || rv.ptr != s.data() + s.size() || !std::isfinite(x))
-        throw InputError(where + kColumns[c] + " '" + s + "' is not a finite number");
+        throw InputError(where + kColumns[c] + " '" + echo(s) + "' is not a finite number");
       v[c - 1] = x;
     }
     Eigen::Quaterniond q(v[3], v[4], v[5], v[6]);

@@ -10,6 +10,9 @@
 
 #include "linksight/io/atomic_file.hpp"
 #include "linksight/io/error.hpp"
+#include "linksight/io/json_input.hpp"
+#include "linksight/tracker/format.hpp"
+#include "linksight/tracker/limits.hpp"
 
 namespace linksight::io {
 namespace {
@@ -98,11 +101,10 @@ Eigen::Vector2d Intrinsics::project(const Eigen::Vector3d& p_C) const {
 
 Intrinsics read_intrinsics(const std::filesystem::path& path) {
   const std::string file = path.string();
-  std::ifstream in(path);
-  if (!in) throw InputError(file + ": cannot open intrinsics");
+  const std::string text = read_json_file(path, "cannot open intrinsics");
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e999
     throw InputError(file + ": malformed JSON: " + e.what());
   }
@@ -110,7 +112,7 @@ Intrinsics read_intrinsics(const std::filesystem::path& path) {
   static const std::set<std::string> known = {"width", "height",      "fx",    "fy",    "cx",
                                               "cy",    "depth_scale", "model", "coeffs"};
   for (const auto& [key, value] : j.items()) {
-    if (!known.count(key)) throw InputError(file + ": unknown key '" + key + "'");
+    if (!known.count(key)) throw InputError(file + ": unknown key '" + echo(key) + "'");
   }
   auto number = [&](const char* key) -> double {
     if (!j.contains(key)) throw InputError(file + ": missing key '" + key + "'");

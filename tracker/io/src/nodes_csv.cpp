@@ -25,7 +25,7 @@ std::size_t index_of(const std::string& s, const std::string& where, const char*
   std::size_t v = 0;
   const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   if (r.ec != std::errc() || r.ptr != s.data() + s.size() || v > kMaxIndex)
-    throw InputError(where + what + " '" + s + "' is not an index");
+    throw InputError(where + what + " '" + echo(s) + "' is not an index");
   return v;
 }
 
@@ -40,7 +40,7 @@ std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& pa
   for (std::size_t h = 0; h < t.header.size(); ++h)
     for (std::size_t c = 0; c < kColumns.size(); ++c) {
       if (t.header[h] != kColumns[c]) continue;
-      if (found[c]) throw InputError(file + ":1: column '" + t.header[h] + "' given twice");
+      if (found[c]) throw InputError(file + ":1: column '" + echo(t.header[h]) + "' given twice");
       found[c] = true;
       at[c] = h;
     }
@@ -105,9 +105,9 @@ std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& pa
       double x = 0;
       const auto rv = std::from_chars(s.data(), s.data() + s.size(), x);
       if (rv.ec != std::errc() || rv.ptr != s.data() + s.size() || !std::isfinite(x))
-        throw InputError(where + kColumns[c] + " '" + s + "' is not a finite number");
+        throw InputError(where + kColumns[c] + " '" + echo(s) + "' is not a finite number");
       if (std::abs(x) > kMaxCoordinate)
-        throw InputError(where + kColumns[c] + " '" + s + "' is beyond " +
+        throw InputError(where + kColumns[c] + " '" + echo(s) + "' is beyond " +
                          format_shortest(kMaxCoordinate) + " m (a tracker's limit)");
       (*out[f])[j][static_cast<Eigen::Index>(c - 2)] = x;
     }

@@ -162,14 +162,14 @@ Cloud read_ply(const std::filesystem::path& path) {
       } else if (f == "binary_little_endian") {
         format = Format::binary_le;
       } else {
-        throw fail("unsupported format '" + f + "' (ascii and binary_little_endian only)");
+        throw fail("unsupported format '" + echo(f) + "' (ascii and binary_little_endian only)");
       }
       have_format = true;
     } else if (word == "element") {
       Element e;
       long long count = -1;
       ls >> e.name >> count;
-      if (!ls || count < 0) throw fail("malformed element line '" + line + "'");
+      if (!ls || count < 0) throw fail("malformed element line '" + echo(line) + "'");
       e.count = static_cast<std::size_t>(count);
       elements.push_back(e);
     } else if (word == "property") {
@@ -182,17 +182,17 @@ Cloud read_ply(const std::filesystem::path& path) {
         ls >> count_type >> item_type >> p.name;
         p.is_list = true;
         if (!parse_type(count_type, p.type) || !parse_type(item_type, p.type)) {
-          throw fail("unsupported property type in '" + line + "'");
+          throw fail("unsupported property type in '" + echo(line) + "'");
         }
       } else {
         ls >> p.name;
         if (!parse_type(type, p.type)) {
-          throw fail("unsupported property type '" + type + "' for '" + p.name + "'");
+          throw fail("unsupported property type '" + echo(type) + "' for '" + echo(p.name) + "'");
         }
       }
       elements.back().props.push_back(p);
     } else {
-      throw fail("unknown header line '" + line + "'");
+      throw fail("unknown header line '" + echo(line) + "'");
     }
   }
   if (!have_format) throw fail("missing format line");
@@ -212,7 +212,7 @@ Cloud read_ply(const std::filesystem::path& path) {
     int* slot = p.name == "x" ? &ix : p.name == "y" ? &iy : p.name == "z" ? &iz : nullptr;
     if (slot == nullptr) continue;
     if (p.is_list || (p.type != Type::f32 && p.type != Type::f64)) {
-      throw fail("unsupported type for vertex property '" + p.name + "' (float or double only)");
+      throw fail("unsupported type for vertex property '" + echo(p.name) + "' (float or double only)");
     }
     *slot = static_cast<int>(k);
   }
@@ -220,7 +220,7 @@ Cloud read_ply(const std::filesystem::path& path) {
     throw fail(std::string("vertex element lacks property ") + (ix < 0 ? "x" : iy < 0 ? "y" : "z"));
   }
   for (const Property& p : vertex.props) {
-    if (p.is_list) throw fail("unsupported: list property '" + p.name + "' in the vertex element");
+    if (p.is_list) throw fail("unsupported: list property '" + echo(p.name) + "' in the vertex element");
   }
   // Everything after the header, to check counts against before trusting them.
   const std::streamoff data_begin = in.tellg();
@@ -270,7 +270,7 @@ Cloud read_ply(const std::filesystem::path& path) {
           char* end = nullptr;
           values[k] = std::strtod(tok.c_str(), &end);
           if (end != tok.c_str() + tok.size()) {
-            throw fail("vertex " + std::to_string(i) + ": bad number '" + tok + "'");
+            throw fail("vertex " + std::to_string(i) + ": bad number '" + echo(tok) + "'");
           }
         }
       }
