@@ -29,6 +29,7 @@
 #include "linksight/io/nodes_csv.hpp"
 #include "linksight/io/ply.hpp"
 #include "linksight/sim/recording.hpp"
+#include "linksight/tracker/limits.hpp"
 #include "run_report.hpp"
 
 namespace linksight::cli {
@@ -71,7 +72,9 @@ Estimate parse_estimate(const std::string& text) {
 // visible over the unoccluded pixels, summed over the components (each once per frame).
 std::vector<double> read_occlusion(const fs::path& path, std::size_t frames, int components) {
   const std::string file = path.string();
-  const io::CsvTable t = io::read_csv(path);
+  io::CsvLimits limits;  // a row per frame and component
+  limits.max_rows = io::rows_with_room(frames * static_cast<std::size_t>(components));
+  const io::CsvTable t = io::read_csv(path, limits);
   constexpr int kCols = 4;
   std::size_t at[kCols] = {0, 0, 0, 0};
   const char* names[kCols] = {"frame", "component", "visible_px", "visible_px_unoccluded"};
@@ -121,9 +124,11 @@ std::vector<double> read_occlusion(const fs::path& path, std::size_t frames, int
 }
 
 // truth.csv's time of each frame [s] (the physics' own, which run reports).
-std::vector<double> read_truth_times(const fs::path& path, std::size_t frames) {
+std::vector<double> read_truth_times(const fs::path& path, std::size_t frames, std::size_t rows) {
   const std::string file = path.string();
-  const io::CsvTable t = io::read_csv(path);
+  io::CsvLimits limits;
+  limits.max_rows = io::rows_with_room(rows);
+  const io::CsvTable t = io::read_csv(path, limits);
   const auto f_at = std::find(t.header.begin(), t.header.end(), "frame");
   const auto t_at = std::find(t.header.begin(), t.header.end(), "t_s");
   if (t_at == t.header.end()) throw io::InputError(file + ":1: no column 't_s'");
@@ -177,7 +182,12 @@ int run_score(const ScoreOptions& o) {
   const ComponentGeometry geometry = sim::read_chain_json(truth_dir / "chain.json");
   const double fps = sim::read_camera_fps(truth_dir / "camera.json");
   const io::Intrinsics K = io::read_intrinsics(truth_dir / "intrinsics.json");
-  const std::vector<std::optional<Nodes>> truth = io::read_nodes_csv(truth_dir / "truth.csv");
+  // The truth's rows: a node per ball and the tip, for each frame of the longest scene.
+  const std::size_t truth_rows =
+      (static_cast<std::size_t>(sim::kMaxDurationS * fps) + 1) *
+      (static_cast<std::size_t>(geometry.count) + 1);
+  const std::vector<std::optional<Nodes>> truth =
+      io::read_nodes_csv(truth_dir / "truth.csv", 0, 0, truth_rows);
   const std::size_t frames = truth.size();
   if (frames == 0) throw io::InputError((truth_dir / "truth.csv").string() + ": no frames");
   for (std::size_t f = 0; f < frames; ++f)
@@ -190,7 +200,7 @@ int run_score(const ScoreOptions& o) {
                          " nodes per frame, but chain.json has count " +
                          std::to_string(geometry.count) + " (a node per ball and the tip: " +
                          std::to_string(geometry.count + 1) + ")");
-  const std::vector<double> times = read_truth_times(truth_dir / "truth.csv", frames);
+  const std::vector<double> times = read_truth_times(truth_dir / "truth.csv", frames, truth_rows);
   const std::vector<double> occluded = read_occlusion(truth_dir / "occlusion.csv", frames, geometry.count);
   for (Estimate& e : estimates) e.frames = io::read_nodes_csv(e.file, frames, n_nodes);
   std::vector<fs::path> clouds(frames);

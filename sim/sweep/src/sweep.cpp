@@ -558,11 +558,23 @@ void check_shard_row(const SweepSpec& spec, const std::vector<std::string>& head
 }
 }  // namespace
 
+namespace {
+// A shard file or cell record of `spec` holding at most `cells` cells: a row per compared
+// mode of each, and the shard's columns.
+io::CsvLimits shard_limits(const SweepSpec& spec, std::size_t cells) {
+  io::CsvLimits limits;
+  limits.max_rows = cells * spec.modes_per_cell();
+  limits.max_columns = shard_columns(spec).size();
+  return limits;
+}
+}  // namespace
+
 bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int count) {
   const fs::path path = dir / shard_file_name(shard, count);
   if (!fs::exists(path) || fs::exists(failed_file(path))) return false;
   try {
-    const io::CsvTable f = io::read_csv(path);
+    const io::CsvTable f =
+        io::read_csv(path, shard_limits(spec, shard_cells(spec, shard, count).size()));
     if (f.header != shard_columns(spec)) return false;
     std::multiset<std::size_t> have;
     for (std::size_t i = 0; i < f.rows.size(); ++i) {
@@ -601,7 +613,7 @@ std::optional<std::vector<SweepRow>> read_cell_record(const fs::path& dir, const
   const fs::path path = cell_records_dir(dir, shard, count) / (std::to_string(cell) + ".csv");
   if (!fs::exists(path)) return std::nullopt;
   try {
-    const io::CsvTable f = io::read_csv(path);
+    const io::CsvTable f = io::read_csv(path, shard_limits(spec, 1));
     if (f.header != shard_columns(spec) || f.rows.size() != spec.modes_per_cell())
       return std::nullopt;
     const std::size_t n_det = sweep_columns(spec).size();
@@ -636,7 +648,7 @@ MergeResult merge_sweep(const fs::path& dir) {
     if (is_shard_file_name(entry.path().filename().string())) files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   for (const fs::path& path : files) {
-    const io::CsvTable f = io::read_csv(path);
+    const io::CsvTable f = io::read_csv(path, shard_limits(spec, spec.cells()));
     if (f.header != header)
       throw io::InputError(path.string() + ": its columns differ from " +
                            (dir / kManifest).string() + "'s sweep");
@@ -646,7 +658,10 @@ MergeResult merge_sweep(const fs::path& dir) {
     }
     ++result.shard_files;
     if (fs::exists(failed_file(path))) {
-      const io::CsvTable failed = io::read_csv(failed_file(path));
+      io::CsvLimits failed_limits;  // a row per failed cell: cell,error
+      failed_limits.max_rows = spec.cells();
+      failed_limits.max_columns = 2;
+      const io::CsvTable failed = io::read_csv(failed_file(path), failed_limits);
       if (failed.header != std::vector<std::string>{"cell", "error"})
         throw io::InputError(failed_file(path).string() + ":1: expected the columns cell,error");
       for (const auto& row : failed.rows) {

@@ -39,7 +39,9 @@ void write_base_pose_row(std::ostream& out, int frame, const Eigen::Isometry3d& 
 std::vector<Eigen::Isometry3d> read_base_poses(const std::filesystem::path& path,
                                                std::size_t frames) {
   const std::string file = path.string();
-  const CsvTable t = read_csv(path);
+  CsvLimits limits;
+  limits.max_rows = rows_with_room(frames);  // a row per input frame
+  const CsvTable t = read_csv(path, limits);
   std::array<std::size_t, kColumns.size()> at{};
   std::array<bool, kColumns.size()> found{};
   for (std::size_t h = 0; h < t.header.size(); ++h) {

@@ -32,9 +32,15 @@ std::size_t index_of(const std::string& s, const std::string& where, const char*
 }  // namespace
 
 std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& path,
-                                                 std::size_t frames, std::size_t nodes) {
+                                                 std::size_t frames, std::size_t nodes,
+                                                 std::size_t max_rows) {
   const std::string file = path.string();
-  const CsvTable t = read_csv(path);
+  // Each (frame, node) once at most, so a table of known size holds frames x nodes rows.
+  CsvLimits limits;
+  limits.max_rows = max_rows != 0                 ? rows_with_room(max_rows)
+                    : frames != 0 && nodes != 0 ? rows_with_room(frames * nodes)
+                                                  : kMaxCsvRows;
+  const CsvTable t = read_csv(path, limits);
   std::array<std::size_t, kColumns.size()> at{};
   std::array<bool, kColumns.size()> found{};
   for (std::size_t h = 0; h < t.header.size(); ++h)

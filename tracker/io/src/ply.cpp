@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "linksight/io/atomic_file.hpp"
+#include "linksight/io/csv.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/tracker/limits.hpp"
 
@@ -24,17 +25,11 @@ namespace {
 // The next line into `line` (without its '\n'); false at the end of the input. Throws
 // fail(...) for a line of kMaxPlyLine bytes or more.
 template <class Fail>
-bool ply_line(std::istream& in, std::string& line, std::vector<char>& buf, const Fail& fail) {
-  buf.resize(static_cast<std::size_t>(kMaxPlyLine) + 1);
-  in.getline(buf.data(), kMaxPlyLine + 1);
-  const std::streamsize n = in.gcount();
-  if (in.bad()) return false;
-  if (in.fail()) {
-    if (n == 0) return false;  // the end, nothing read
+bool ply_line(std::istream& in, std::string& line, const Fail& fail) {
+  bool too_long = false;
+  if (!read_bounded_line(in, line, static_cast<std::size_t>(kMaxPlyLine), too_long)) return false;
+  if (too_long)
     throw fail("a line of " + std::to_string(kMaxPlyLine) + " bytes or more (a PLY line is short)");
-  }
-  // Before the end of the input the '\n' was taken too, and counts in n.
-  line.assign(buf.data(), static_cast<std::size_t>(in.eof() ? n : n - 1));
   return true;
 }
 
@@ -139,15 +134,14 @@ Cloud read_ply(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw fail("cannot open");
   std::string line;
-  std::vector<char> line_buf;
-  if (!ply_line(in, line, line_buf, fail) || (line != "ply" && line != "ply\r"))
+  if (!ply_line(in, line, fail) || (line != "ply" && line != "ply\r"))
     throw fail("not a PLY file");
 
   enum class Format { ascii, binary_le } format = Format::ascii;
   bool have_format = false;
   std::vector<Element> elements;
   for (;;) {
-    if (!ply_line(in, line, line_buf, fail)) throw fail("truncated header (no end_header)");
+    if (!ply_line(in, line, fail)) throw fail("truncated header (no end_header)");
     if (!line.empty() && line.back() == '\r') line.pop_back();
     std::istringstream ls(line);
     std::string word;
@@ -249,11 +243,11 @@ Cloud read_ply(const std::filesystem::path& path) {
     std::size_t skip = 0;
     for (std::size_t i = 0; i < vi; ++i) skip += elements[i].count;
     for (std::size_t i = 0; i < skip; ++i) {
-      if (!ply_line(in, line, line_buf, fail)) throw fail("truncated before the vertex element");
+      if (!ply_line(in, line, fail)) throw fail("truncated before the vertex element");
     }
     std::vector<double> values(vertex.props.size());
     for (std::size_t i = 0; i < vertex.count; ++i) {
-      if (!ply_line(in, line, line_buf, fail)) {
+      if (!ply_line(in, line, fail)) {
         throw truncated(i);
       }
       std::istringstream ls(line);
@@ -278,7 +272,7 @@ Cloud read_ply(const std::filesystem::path& path) {
                       static_cast<float>(values[iz]));
     }
     if (vertex_is_last) {
-      while (ply_line(in, line, line_buf, fail)) {
+      while (ply_line(in, line, fail)) {
         if (line.find_first_not_of(" \t\r") != std::string::npos) {
           throw fail("wrong vertex count: more data after " + std::to_string(vertex.count) +
                      " vertices");
