@@ -72,9 +72,7 @@ void write_label_png(const fs::path& path, int width, int height,
 }
 
 std::vector<std::uint8_t> read_label_png(const fs::path& path, int& width, int& height) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw io::InputError(path.string() + ": cannot open");
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::vector<char> bytes = io::read_png_checked(path);
   int channels = 0;
   if (!stbi_info_from_memory(reinterpret_cast<const unsigned char*>(bytes.data()),
                              static_cast<int>(bytes.size()), &width, &height, &channels) ||

@@ -4,6 +4,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "linksight/tracker/format.hpp"
+#include "linksight/tracker/limits.hpp"
+
 namespace linksight::sim {
 
 io::Intrinsics sr300_intrinsics() {
@@ -36,6 +39,12 @@ Eigen::Isometry3d look_at(const Eigen::Vector3d& eye_W, const Eigen::Vector3d& t
 void CameraParams::validate() const {
   fields::check(*this, "camera");
   intrinsics.validate();
+  if (static_cast<long long>(intrinsics.width) * intrinsics.height > io::kMaxDepthPngPixels)
+    fields::fail("camera", "height", intrinsics.height,
+                 "makes " + format_shortest(static_cast<double>(intrinsics.width) * intrinsics.height) +
+                     " pixels with width " + std::to_string(intrinsics.width) + ", more than " +
+                     format_shortest(static_cast<double>(io::kMaxDepthPngPixels)) +
+                     " (what a recording's depth PNG may hold)");
   if (!(z_max > z_min))
     fields::fail("camera", "z_max_m", z_max, "must be > z_min_m (" + format_shortest(z_min) + ")");
   const Eigen::Matrix3d R = X_WC.linear();

@@ -110,6 +110,10 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
   EXPECT_NE(error_of("camera:\n  width: 3e9\n").find(":2: camera.width = 3000000000: must be a whole number"),
             std::string::npos);
   EXPECT_EQ(error_of("seed: 9007199254740992\n"), "no error");  // 2^53
+  // Issue 59: a camera whose depth PNGs the reader would refuse is refused at its key.
+  has("camera:\n  width: 4097\n", ":2: camera.width = 4097: must be in [1, 4096]");
+  has("camera:\n  width: 4096\n  height: 2048\n",
+      "camera.height = 2048: makes 8388608 pixels with width 4096, more than 4194304");
   // noise.scale scales the file's values after they are checked: a scaled value out of
   // range names the scale.
   has("noise:\n  scale: 60\n  axial: {a_m: 0.002}\n", ":2: noise.scale = 60 makes noise.axial.a_m 0.12, which must be in [0, 0.1]");

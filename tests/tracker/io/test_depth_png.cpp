@@ -85,6 +85,49 @@ TEST_F(DepthPng, AChunkLongerThanTheFileIsRefusedBeforeDecoding) {
       << e;
 }
 
+// A valid PNG whose first IDAT chunk is empty: stb_image copies it into a buffer it has
+// not allocated yet (memcpy to NULL, undefined behaviour under UBSan). Refused before stb
+// sees it; an empty IDAT after data is harmless and read.
+TEST_F(DepthPng, AnEmptyFirstIdatIsRefusedBeforeDecoding) {
+  write_depth_png(dir / "ok.png", DepthImage{2, 1, {0x1234, 0xABCD}});
+  std::ifstream in(dir / "ok.png", std::ios::binary);
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)), {});
+  const char empty_idat[] = {0, 0, 0, 0, 'I', 'D', 'A', 'T', '\x35', '\xAF', '\x06', '\x1E'};
+  const auto write_with_empty_idat_at = [&](const char* name, std::size_t at) {
+    std::vector<char> b = bytes;
+    b.insert(b.begin() + static_cast<std::ptrdiff_t>(at), std::begin(empty_idat), std::end(empty_idat));
+    std::ofstream(dir / name, std::ios::binary).write(b.data(), static_cast<std::streamsize>(b.size()));
+  };
+  write_with_empty_idat_at("first.png", 33);  // before the data's IDAT
+  EXPECT_EQ(test::error_of([&] { (void)read_depth_png(dir / "first.png"); }),
+            (dir / "first.png").string() +
+                ": not a readable PNG (its first IDAT chunk, at byte 33, is empty)");
+  write_with_empty_idat_at("after.png", bytes.size() - 12);  // before IEND
+  EXPECT_EQ(read_depth_png(dir / "after.png").data, (std::vector<std::uint16_t>{0x1234, 0xABCD}));
+}
+
+// The size cap is read from the header before anything is decoded: twice the SR300's
+// largest stream (1920x1080) in pixels, 4096 a side (the issue: a 39 KB 4096x4096 PNG cost
+// 750 MB and 30 s).
+TEST_F(DepthPng, ImagesLargerThanACameraDeliversAreRefusedFromTheHeader) {
+  const auto header_only = [&](const char* name, std::uint32_t w, std::uint32_t h) {
+    std::string png("\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR", 16);
+    for (const std::uint32_t v : {w, h})
+      for (int s = 24; s >= 0; s -= 8) png.push_back(static_cast<char>((v >> s) & 0xFF));
+    png += std::string("\x10\0\0\0\0\0\0\0\0", 9);
+    std::ofstream(dir / name, std::ios::binary) << png << std::string(1000, '\0');
+    return test::error_of([&] { (void)read_depth_png(dir / name); });
+  };
+  const std::string limits = " pixels is more than a camera image may have (4194304 pixels, 4096 a side)";
+  EXPECT_EQ(header_only("big.png", 4096, 4096), (dir / "big.png").string() + ": 4096x4096" + limits);
+  EXPECT_EQ(header_only("side.png", 4097, 1), (dir / "side.png").string() + ": 4097x1" + limits);
+  // Under the cap the header passes and the decoder says what is wrong with the rest.
+  EXPECT_EQ(header_only("hd.png", 1920, 1080).find(limits), std::string::npos);
+  DepthImage hd{1920, 1080, std::vector<std::uint16_t>(1920 * 1080, 700)};
+  write_depth_png(dir / "hd_ok.png", hd);
+  EXPECT_EQ(read_depth_png(dir / "hd_ok.png").data.size(), hd.data.size());
+}
+
 TEST_F(DepthPng, PlaneBackProjectsToItsDepth) {
   Intrinsics k;
   k.width = 64;

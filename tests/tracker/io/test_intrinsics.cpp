@@ -64,6 +64,31 @@ TEST_F(IntrinsicsFile, Errors) {
   std::string neg = kGood;
   neg.replace(neg.find("476.007"), 7, "-1");
   EXPECT_NE(error_of(neg).find("intrinsics.fx"), std::string::npos);
+  // Issue 59: a focal length of 1e308 px (a field of view of 10^-305 degrees) is refused,
+  // as is a depth unit of a kilometre.
+  std::string huge = kGood;
+  huge.replace(huge.find("476.007"), 7, "1e308");
+  EXPECT_NE(error_of(huge).find("intrinsics.fx = 1e+308: must be in (0, 235000] px (a field of "
+                                "view of 1 degree or more)"),
+            std::string::npos)
+      << error_of(huge);
+  for (const auto& [value, key] : {std::pair{"\"fy\": 1e6", "intrinsics.fy = 1000000: must be in"},
+                                   std::pair{"\"depth_scale\": 1000", "intrinsics.depth_scale = 1000"}}) {
+    std::string s = kGood;
+    const std::string k = std::string(value).substr(0, std::string(value).find(':') + 1);
+    const std::size_t at = s.find(k);
+    ASSERT_NE(at, std::string::npos) << k;
+    s.replace(at, s.find_first_of(",}", at) - at, value);
+    EXPECT_NE(error_of(s).find(key), std::string::npos) << error_of(s);
+  }
+  // Issue 59: a value nested 100,000 deep is refused before it is parsed, and a key's
+  // control bytes are escaped.
+  EXPECT_NE(error_of("{\"width\": " + std::string(100000, '[')).find(
+                "JSON nested deeper than 64 levels (byte 73)"),
+            std::string::npos);
+  EXPECT_NE(error_of("{\"wid\\u001bth\\r\": 640}").find("unknown key 'wid\\x1Bth\\r'"),
+            std::string::npos)
+      << error_of("{\"wid\\u001bth\\r\": 640}");
   std::string model = kGood;
   model.insert(model.size() - 1, R"(, "model": "fisheye", "coeffs": [0,0,0,0,0])");
   EXPECT_NE(error_of(model).find("key 'model': unknown distortion model 'fisheye' (expected none, brown_conrady or inverse_brown_conrady)"), std::string::npos);

@@ -68,18 +68,32 @@ Distortion parse_distortion(std::string_view name) {
                               "' (expected none, brown_conrady or inverse_brown_conrady)");
 }
 
+namespace {
+// The focal length [px] of a 1-degree field of view across the widest image a camera may
+// deliver: kMaxDepthPngSide / (2 tan(0.5 degree)) = 234,659 px, rounded up.
+constexpr double kMaxFocalPx = 2.35e5;
+static_assert(kMaxDepthPngSide == 4096, "kMaxFocalPx follows from the widest image");
+}  // namespace
+
 void Intrinsics::validate() const {
   auto bad = [](const std::string& field, double v, const char* rule) {
-    throw std::invalid_argument("intrinsics." + field + " = " + std::to_string(v) + ": " + rule);
+    throw std::invalid_argument("intrinsics." + field + " = " + format_shortest(v) + ": " + rule);
   };
   if (width <= 0) bad("width", width, "must be > 0");
   if (height <= 0) bad("height", height, "must be > 0");
-  if (!(std::isfinite(fx) && fx > 0)) bad("fx", fx, "must be > 0");
-  if (!(std::isfinite(fy) && fy > 0)) bad("fy", fy, "must be > 0");
+  // A longer focal length is a field of view under 1 degree across any image a camera may
+  // deliver: no depth camera's (the SR300's is 71.5 x 55 degrees), and 1e308 is a typo or
+  // an attack. Bounded by the widest image, not this one: a crop keeps its focal length.
+  if (!(std::isfinite(fx) && fx > 0 && fx <= kMaxFocalPx))
+    bad("fx", fx, "must be in (0, 235000] px (a field of view of 1 degree or more)");
+  if (!(std::isfinite(fy) && fy > 0 && fy <= kMaxFocalPx))
+    bad("fy", fy, "must be in (0, 235000] px (a field of view of 1 degree or more)");
+  // A crop's principal point may lie outside it: finite is all.
   if (!std::isfinite(cx)) bad("cx", cx, "must be finite");
   if (!std::isfinite(cy)) bad("cy", cy, "must be finite");
-  if (!(std::isfinite(depth_scale) && depth_scale > 0))
-    bad("depth_scale", depth_scale, "must be > 0");
+  // A depth unit of a metre or more is no depth camera's (the SR300's is 1/8000 m).
+  if (!(std::isfinite(depth_scale) && depth_scale > 0 && depth_scale <= 1.0))
+    bad("depth_scale", depth_scale, "must be in (0, 1] m");
   for (double c : coeffs) {
     if (!std::isfinite(c)) bad("coeffs", c, "must be finite");
   }

@@ -118,24 +118,27 @@ PngSize png_size(const std::filesystem::path& path) {
   return {be32(head + 16), be32(head + 20), head[24]};
 }
 
-DepthImage read_depth_png(const std::filesystem::path& path) {
+std::vector<char> read_png_checked(const std::filesystem::path& path) {
   const std::string file = path.string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec) && std::filesystem::exists(path, ec))
+    throw InputError(file + ": not a regular file");
   const PngSize size = png_size(path);
   // Each side first: two 32-bit sides multiplied would overflow (found by fuzz_depth_png).
-  if (size.width > kMaxDepthPngPixels || size.height > kMaxDepthPngPixels ||
+  if (size.width > kMaxDepthPngSide || size.height > kMaxDepthPngSide ||
       size.width * size.height > kMaxDepthPngPixels)
     throw InputError(file + ": " + std::to_string(size.width) + "x" + std::to_string(size.height) +
-                     " pixels is more than a depth image may have (" +
-                     std::to_string(kMaxDepthPngPixels) + ")");
+                     " pixels is more than a camera image may have (" +
+                     std::to_string(kMaxDepthPngPixels) + " pixels, " +
+                     std::to_string(kMaxDepthPngSide) + " a side)");
   // A 16-bit PNG of the most pixels, stored uncompressed, is about 2 bytes a pixel: a
   // larger file is refused before it is read in.
   constexpr std::uintmax_t kMaxBytes = 4 * static_cast<std::uintmax_t>(kMaxDepthPngPixels) + (1 << 20);
-  std::error_code ec;
   const std::uintmax_t file_bytes = std::filesystem::file_size(path, ec);
   if (ec) throw InputError(file + ": cannot read (" + ec.message() + ")");
   if (file_bytes > kMaxBytes)
     throw InputError(file + ": " + std::to_string(file_bytes) +
-                     " bytes is more than a depth PNG may have (" + std::to_string(kMaxBytes) +
+                     " bytes is more than a camera PNG may have (" + std::to_string(kMaxBytes) +
                      ")");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(file + ": cannot open");
@@ -144,7 +147,9 @@ DepthImage read_depth_png(const std::filesystem::path& path) {
   bytes.resize(static_cast<std::size_t>(in.gcount()));
   // Every chunk must fit in the file: stb_image sizes its buffer by an IDAT chunk's declared
   // length before reading it, so a 117-byte file declaring 1.2 GB took 2 GiB (found by
-  // fuzz_depth_png).
+  // fuzz_depth_png). And the first IDAT must hold data: stb_image copies a first empty one
+  // into a buffer it has not allocated yet (memcpy to NULL, undefined behaviour).
+  bool idat_seen = false;
   for (std::size_t at = 8; at + 8 <= bytes.size();) {
     const auto* c = reinterpret_cast<const unsigned char*>(bytes.data() + at);
     const auto length = static_cast<std::uint64_t>(be32(c));
@@ -153,8 +158,20 @@ DepthImage read_depth_png(const std::filesystem::path& path) {
                        " declares " + std::to_string(length) + " bytes, the file has " +
                        std::to_string(bytes.size() - at - 8) + " after its header)");
     if (std::memcmp(c + 4, "IEND", 4) == 0) break;
+    if (std::memcmp(c + 4, "IDAT", 4) == 0) {
+      if (!idat_seen && length == 0)
+        throw InputError(file + ": not a readable PNG (its first IDAT chunk, at byte " +
+                         std::to_string(at) + ", is empty)");
+      idat_seen = true;
+    }
     at += 12 + static_cast<std::size_t>(length);
   }
+  return bytes;
+}
+
+DepthImage read_depth_png(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  const std::vector<char> bytes = read_png_checked(path);
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
   const int len = static_cast<int>(bytes.size());
   int w = 0, h = 0, comp = 0;

@@ -21,9 +21,13 @@ inline constexpr double kMaxCoordinate = 100.0;  // [m]
 inline constexpr std::size_t kMaxPoints = std::size_t{1} << 24;
 
 namespace io {
-/// The most pixels a depth PNG may have (16 Mpx, 32 MB decoded), checked on the header
-/// before anything is decoded: a depth camera's frame is far smaller.
-inline constexpr long long kMaxDepthPngPixels = 1LL << 24;
+/// The most pixels a depth (or label) PNG may have, 4 Mpx (8 MB decoded), checked on the
+/// header before anything is decoded. The SR300's largest stream is its colour camera's
+/// 1920x1080, the size of a depth image aligned to colour; this is twice that. Its depth
+/// camera's own largest mode is 640x480.
+inline constexpr long long kMaxDepthPngPixels = 1LL << 22;
+/// The longest side of such a PNG [pixels]: twice the SR300's 1920.
+inline constexpr long long kMaxDepthPngSide = 4096;
 /// A PLY line (header, ASCII vertex) of this many bytes or more is refused.
 inline constexpr long long kMaxPlyLine = 1LL << 16;
 /// nodes.csv (score): a frame index above this is no recording's (a million frames: 9 h

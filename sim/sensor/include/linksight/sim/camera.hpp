@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 
 #include "linksight/io/intrinsics.hpp"
+#include "linksight/tracker/limits.hpp"
 #include "linksight/tracker/fields.hpp"
 
 namespace linksight::sim {
@@ -46,8 +47,9 @@ struct CameraParams {
   void fields(Archive& ar) {
     io::Intrinsics& k = intrinsics;
     ar("fps", fps, fields::in(1, 1000));
-    ar("width", k.width, fields::in(1, 8192));
-    ar("height", k.height, fields::in(1, 8192));
+    // What the depth PNG reader takes back (limits.hpp): a recording must read.
+    ar("width", k.width, fields::in(1, static_cast<double>(io::kMaxDepthPngSide)));
+    ar("height", k.height, fields::in(1, static_cast<double>(io::kMaxDepthPngSide)));
     ar("fx", k.fx, fields::in(1e-3, 1e5));
     ar("fy", k.fy, fields::in(1e-3, 1e5));
     ar("cx", k.cx, fields::in(-1e5, 1e5));

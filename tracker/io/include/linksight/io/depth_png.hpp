@@ -30,9 +30,16 @@ struct PngSize {
 };
 [[nodiscard]] PngSize png_size(const std::filesystem::path& path);
 
+/// The bytes of the PNG file `path`, checked before a decoder sees them: a regular file,
+/// at most kMaxDepthPngSide a side and kMaxDepthPngPixels in all (from the header), at
+/// most 4 bytes a pixel of that in the file, every chunk within the file, the first IDAT
+/// chunk not empty. Throws InputError naming the file and the check. Every PNG reader
+/// (depth, labels) decodes only what this returns.
+[[nodiscard]] std::vector<char> read_png_checked(const std::filesystem::path& path);
+
 /// Reads a single-channel 16-bit PNG. Throws InputError naming the file when it is not
-/// a PNG, not 16-bit or not single-channel, or has more than kMaxDepthPngPixels (checked
-/// on the header, before anything is decoded).
+/// a PNG, not 16-bit or not single-channel, or fails read_png_checked (before anything is
+/// decoded).
 [[nodiscard]] DepthImage read_depth_png(const std::filesystem::path& path);
 /// Writes a 16-bit grayscale PNG (stored deflate blocks), atomically.
 void write_depth_png(const std::filesystem::path& path, const DepthImage& image);
