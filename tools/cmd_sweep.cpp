@@ -130,9 +130,18 @@ int run_sweep(const SweepOptions& o) {
   const fs::path dir = o.out;
   // The first cell loads now: a bad scene or override fails before anything is written.
   (void)sim::sweep_cell(spec, 0);
+  // One process per shard, from before --force clears anything until the shard file is
+  // written and its records removed.
+  {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw io::InputError(dir.string() + ": cannot create the sweep directory");
+  }
+  const sim::ShardLock lock(dir, shard, count);
   if (o.force && fs::exists(dir / "sweep.json")) {
     for (const auto& e : fs::directory_iterator(dir)) {
       const std::string name = e.path().filename().string();
+      if (name.ends_with(".lock")) continue;  // another shard's may be held
       if (name == "sweep.json" || name.rfind("shard_", 0) == 0 || name.rfind("cells", 0) == 0)
         fs::remove_all(e.path());  // shard_I_of_N.cells/ too
     }

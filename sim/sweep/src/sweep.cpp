@@ -1,7 +1,11 @@
 #include "linksight/sim/sweep.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -31,7 +35,11 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr const char* kManifest = "sweep.json";
-constexpr int kManifestVersion = 1;
+// 2: the manifest and every shard row carry the sweep's digest (sweep_digest).
+constexpr int kManifestVersion = 2;
+// The last column of a shard file and a cell record: the sweep's digest, checked on every
+// read and dropped from the merged tables.
+constexpr const char* kDigestColumn = "sweep_digest";
 
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t");
@@ -59,6 +67,7 @@ std::string csv_line(const std::vector<std::string>& fields) {
 std::vector<std::string> shard_columns(const SweepSpec& spec) {
   std::vector<std::string> c = sweep_columns(spec);
   for (std::size_t i = 2; i < std::size(kTiming); ++i) c.emplace_back(kTiming[i]);
+  c.emplace_back(kDigestColumn);
   return c;
 }
 
@@ -365,9 +374,65 @@ nlohmann::json manifest_json(const SweepSpec& spec) {
   }
   j["frames"] = spec.frames;
   j["cells"] = spec.cells();
+  j["digest"] = sweep_digest(spec);
   return j;
 }
+
+// The digest a manifest was written with.
+std::string stored_digest(const fs::path& dir) {
+  const fs::path path = dir / kManifest;
+  const nlohmann::json j = nlohmann::json::parse(io::read_json_file(path, "no sweep manifest here"));
+  const auto d = j.find("digest");
+  const std::string digest = d != j.end() && d->is_string() ? d->get<std::string>() : "";
+  if (digest.size() != 16 || digest.find_first_not_of("0123456789abcdef") != std::string::npos)
+    throw io::InputError(path.string() + ": no digest of 16 hex digits");
+  return digest;
+}
 }  // namespace
+
+std::string sweep_digest(const SweepSpec& spec) {
+  // FNV-1a, 64 bits, over each part with its length: not a defence against a forger, a
+  // check that a file was made by this sweep.
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  const auto add = [&](std::string_view part) {
+    const std::string framed = std::to_string(part.size()) + ":";
+    for (const std::string_view p : {std::string_view(framed), part})
+      for (const char c : p) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001b3ull;
+  };
+  nlohmann::json j;
+  j["scene"] = spec.scene.string();
+  j["axes"] = nlohmann::json::array();
+  for (const SweepAxis& a : spec.axes) j["axes"].push_back({{"key", a.key}, {"values", a.values}});
+  j["set"] = spec.set;
+  j["modes"] = nlohmann::json::array();
+  for (const TrackerMode m : spec.modes) j["modes"].push_back(std::string(to_string(m)));
+  j["scene_mode"] = spec.scene_mode;
+  j["external"] = nlohmann::json::array();
+  for (const ExternalTrackerSpec& e : spec.external)
+    j["external"].push_back({{"name", e.name}, {"command", e.command}});
+  j["frames"] = spec.frames;
+  add(j.dump());
+  // The bytes of every scene file a cell loads: the base scene and each `scene` axis value.
+  std::vector<fs::path> scenes;
+  if (!spec.scene.empty()) scenes.push_back(spec.scene);
+  for (const SweepAxis& a : spec.axes)
+    if (a.key == "scene")
+      for (const std::string& v : a.values) scenes.emplace_back(v);
+  for (const fs::path& p : scenes) {
+    std::ifstream in(p, std::ios::binary);
+    std::string bytes;
+    char buf[4096];
+    while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+      bytes.append(buf, static_cast<std::size_t>(in.gcount()));
+      if (bytes.size() > yaml::kMaxFileBytes) break;  // load_scene refuses such a file
+    }
+    add(p.string());
+    add(bytes);
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return hex;
+}
 
 void write_manifest(const fs::path& dir, const SweepSpec& spec) {
   std::error_code ec;
@@ -391,6 +456,14 @@ void write_manifest(const fs::path& dir, const SweepSpec& spec) {
                              io::echo(at(want, field).dump()) +
                              " (use another --out, or --force to start over)");
     }
+    // The same settings, but a scene file changed since the sweep began: its cells would
+    // mix two scenes.
+    if (const std::string had = stored_digest(dir); had != want.at("digest").get<std::string>())
+      throw io::InputError(path.string() + " describes another sweep: digest " + had +
+                           ", this run has " +
+                           want.at("digest").get<std::string>() +
+                           " (a scene file changed since the sweep began; use another --out, "
+                           "or --force to start over)");
     return;
   }
   io::write_file_atomic(path, [&](std::ostream& os) { os << want.dump(2) << "\n"; });
@@ -461,9 +534,10 @@ std::string one_field(std::string s) {
 
 // A row as the shard file and a cell's record hold it: the deterministic columns, then the
 // timing columns after the cell and mode.
-void write_row(std::ostream& os, const SweepRow& r) {
+void write_row(std::ostream& os, const SweepRow& r, const std::string& digest) {
   std::vector<std::string> f = r.values;
   f.insert(f.end(), r.timing.begin() + 2, r.timing.end());
+  f.push_back(digest);
   os << csv_line(f);
 }
 
@@ -490,8 +564,9 @@ void write_shard_file(const fs::path& dir, const SweepSpec& spec, int shard, int
 
 void write_shard(const fs::path& dir, const SweepSpec& spec, int shard, int count,
                  const std::vector<SweepRow>& rows, const std::vector<SweepFailure>& failures) {
+  const std::string digest = sweep_digest(spec);
   write_shard_file(dir, spec, shard, count, failures, [&](std::ostream& os) {
-    for (const SweepRow& r : rows) write_row(os, r);
+    for (const SweepRow& r : rows) write_row(os, r, digest);
   });
 }
 
@@ -499,6 +574,7 @@ void write_shard_from_records(const fs::path& dir, const SweepSpec& spec, int sh
                               const std::vector<SweepFailure>& failures) {
   std::set<std::size_t> failed;
   for (const SweepFailure& f : failures) failed.insert(f.cell);
+  const std::string digest = sweep_digest(spec);
   write_shard_file(dir, spec, shard, count, failures, [&](std::ostream& os) {
     for (const std::size_t c : shard_cells(spec, shard, count)) {
       if (failed.count(c) != 0) continue;
@@ -509,7 +585,7 @@ void write_shard_from_records(const fs::path& dir, const SweepSpec& spec, int sh
                                  .string() +
                              ": cell " + std::to_string(c) +
                              "'s record is missing or torn (run the shard again)");
-      for (const SweepRow& r : *rows) write_row(os, r);
+      for (const SweepRow& r : *rows) write_row(os, r, digest);
     }
   });
 }
@@ -520,8 +596,9 @@ namespace {
 // that many frames. A shard file copied in from another sweep with the same columns (other
 // seeds, another --frames) is refused here, not merged (issue 19, F3). Throws InputError
 // naming the file, the line and the field.
-void check_shard_row(const SweepSpec& spec, const std::vector<std::string>& header,
-                     const std::vector<std::string>& row, const fs::path& path, int line) {
+void check_shard_row(const SweepSpec& spec, const std::string& digest,
+                     const std::vector<std::string>& header, const std::vector<std::string>& row,
+                     const fs::path& path, int line) {
   const std::string at = path.string() + ":" + std::to_string(line) + ": ";
   const std::size_t cell = parse_index(row[0], path);
   if (cell >= spec.cells())
@@ -555,6 +632,12 @@ void check_shard_row(const SweepSpec& spec, const std::vector<std::string>& head
                            " frames, this sweep runs " + std::to_string(spec.frames) +
                            " (a shard of another sweep?)");
   }
+  // Another sweep's shard with the same axes and frames (another --set or scene) has
+  // the same columns and axis values: only the digest tells (issue 59).
+  if (row.back() != digest)
+    throw io::InputError(at + "its sweep digest is '" + io::echo(row.back()) + "', this sweep's is '" +
+                         digest + "' (a shard of another sweep: another scene, --set, axis, " +
+                         "frames or tracker)");
 }
 }  // namespace
 
@@ -576,9 +659,10 @@ bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int c
     const io::CsvTable f =
         io::read_csv(path, shard_limits(spec, shard_cells(spec, shard, count).size()));
     if (f.header != shard_columns(spec)) return false;
+    const std::string digest = sweep_digest(spec);
     std::multiset<std::size_t> have;
     for (std::size_t i = 0; i < f.rows.size(); ++i) {
-      check_shard_row(spec, f.header, f.rows[i], path, f.lines[i]);
+      check_shard_row(spec, digest, f.header, f.rows[i], path, f.lines[i]);
       have.insert(parse_index(f.rows[i][0], path));
     }
     std::multiset<std::size_t> want;
@@ -588,6 +672,36 @@ bool shard_complete(const fs::path& dir, const SweepSpec& spec, int shard, int c
   } catch (const io::InputError&) {
     return false;  // unreadable or torn: run it again
   }
+}
+
+ShardLock::ShardLock(const fs::path& dir, int shard, int count) {
+  std::string name = shard_file_name(shard, count);
+  name.replace(name.size() - 4, 4, ".lock");
+  const fs::path path = dir / name;
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw io::InputError(path.string() + ": cannot open: " + std::strerror(errno));
+  // A POSIX record lock on the whole (empty) file: the kernel releases it however the
+  // process ends, F_GETLK names its holder, and it works over NFS, where Slurm's shards
+  // often write.
+  struct flock lock {};
+  lock.l_type = F_WRLCK;
+  lock.l_whence = SEEK_SET;
+  if (::fcntl(fd_, F_SETLK, &lock) != 0) {
+    struct flock held {};
+    held.l_type = F_WRLCK;
+    held.l_whence = SEEK_SET;
+    const bool named = ::fcntl(fd_, F_GETLK, &held) == 0 && held.l_type != F_UNLCK;
+    ::close(fd_);
+    fd_ = -1;
+    throw io::InputError(path.string() + ": shard " + std::to_string(shard) + "/" +
+                         std::to_string(count) + " is being run by another process" +
+                         (named ? " (pid " + std::to_string(held.l_pid) + ")" : std::string()) +
+                         "; wait for it, or run another shard");
+  }
+}
+
+ShardLock::~ShardLock() {
+  if (fd_ >= 0) ::close(fd_);  // releases the lock
 }
 
 fs::path cell_records_dir(const fs::path& dir, int shard, int count) {
@@ -604,7 +718,8 @@ void write_cell_record(const fs::path& dir, const SweepSpec& spec, int shard, in
   if (ec) throw io::InputError(records.string() + ": cannot create: " + ec.message());
   io::write_file_atomic(records / (std::to_string(cell) + ".csv"), [&](std::ostream& os) {
     os << csv_line(shard_columns(spec));
-    for (const SweepRow& r : rows) write_row(os, r);
+    const std::string digest = sweep_digest(spec);
+    for (const SweepRow& r : rows) write_row(os, r, digest);
   });
 }
 
@@ -617,17 +732,18 @@ std::optional<std::vector<SweepRow>> read_cell_record(const fs::path& dir, const
     if (f.header != shard_columns(spec) || f.rows.size() != spec.modes_per_cell())
       return std::nullopt;
     const std::size_t n_det = sweep_columns(spec).size();
+    const std::string digest = sweep_digest(spec);
     std::vector<SweepRow> rows;
     for (std::size_t i = 0; i < f.rows.size(); ++i) {
       const std::vector<std::string>& row = f.rows[i];
-      check_shard_row(spec, f.header, row, path, f.lines[i]);
+      check_shard_row(spec, digest, f.header, row, path, f.lines[i]);
       if (parse_index(row[0], path) != cell) return std::nullopt;
       SweepRow r;
       r.cell = cell;
       r.mode = i;
       r.values.assign(row.begin(), row.begin() + static_cast<long>(n_det));
       r.timing = {row[0], row[1]};
-      r.timing.insert(r.timing.end(), row.begin() + static_cast<long>(n_det), row.end());
+      r.timing.insert(r.timing.end(), row.begin() + static_cast<long>(n_det), row.end() - 1);
       rows.push_back(std::move(r));
     }
     return rows;
@@ -638,6 +754,9 @@ std::optional<std::vector<SweepRow>> read_cell_record(const fs::path& dir, const
 
 MergeResult merge_sweep(const fs::path& dir) {
   const SweepSpec spec = read_manifest(dir);
+  // The manifest's own: the merge needs no scene file, and a shard must be of this sweep
+  // as it began.
+  const std::string digest = stored_digest(dir);
   const std::vector<std::string> header = shard_columns(spec);
   const std::size_t n_det = sweep_columns(spec).size();
   const std::size_t per_cell = spec.modes_per_cell();
@@ -653,8 +772,9 @@ MergeResult merge_sweep(const fs::path& dir) {
       throw io::InputError(path.string() + ": its columns differ from " +
                            (dir / kManifest).string() + "'s sweep");
     for (std::size_t i = 0; i < f.rows.size(); ++i) {
-      check_shard_row(spec, header, f.rows[i], path, f.lines[i]);
-      by_cell[parse_index(f.rows[i][0], path)].push_back(f.rows[i]);
+      check_shard_row(spec, digest, header, f.rows[i], path, f.lines[i]);
+      std::vector<std::string>& row = by_cell[parse_index(f.rows[i][0], path)].emplace_back(f.rows[i]);
+      row.pop_back();  // the digest: not in the merged tables
     }
     ++result.shard_files;
     if (fs::exists(failed_file(path))) {

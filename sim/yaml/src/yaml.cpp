@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "linksight/io/echo.hpp"
+
 namespace linksight::sim::yaml {
 
 YAML::Node load_file(const std::filesystem::path& path, const std::string& what) {
@@ -51,12 +53,13 @@ void Reader::fail(const YAML::Node& node, const std::string& key, const std::str
   for (auto it = overrides_.rbegin(); it != overrides_.rend(); ++it) {
     const Override& o = *it;
     if (key == o.key || key.starts_with(o.key + ".") || key.starts_with(o.key + "[")) {
-      throw io::InputError(file_ + ": " + o.flag + " " + o.key + "=" + o.value + ": " + key + sep +
-                           what);
+      throw io::InputError(file_ + ": " + o.flag + " " + io::echo(o.key) + "=" + io::echo(o.value) +
+                           ": " + io::echo(key) + sep + what);
     }
   }
   const int line = node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 0;
-  throw io::InputError(file_ + ":" + std::to_string(line) + ": " + key + sep + what);
+  // The key path is the file's own text: echoed (escaped, bounded) like any input.
+  throw io::InputError(file_ + ":" + std::to_string(line) + ": " + io::echo(key) + sep + what);
 }
 
 std::string Reader::key_text(const YAML::Node& key, const std::string& where) const {
@@ -176,15 +179,15 @@ Override apply_override(const std::string& file, YAML::Node& root, const std::st
   const std::string& k = o.key;
   while (i < k.size()) {
     if (k[i] == '.') {
-      if (i == 0 || i + 1 == k.size() || k[i + 1] == '.') bad("empty key in '" + k + "'");
+      if (i == 0 || i + 1 == k.size() || k[i + 1] == '.') bad("empty key in '" + io::echo(k) + "'");
       ++i;
     } else if (k[i] == '[') {
       const auto close = k.find(']', i);
-      if (close == std::string::npos || steps.empty()) bad("bad index in '" + k + "'");
+      if (close == std::string::npos || steps.empty()) bad("bad index in '" + io::echo(k) + "'");
       const std::string digits = k.substr(i + 1, close - i - 1);
       if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos ||
           digits.size() > 6)
-        bad("bad index '" + digits + "'");
+        bad("bad index '" + io::echo(digits) + "'");
       steps.push_back({"", std::stoi(digits)});
       i = close + 1;
     } else {

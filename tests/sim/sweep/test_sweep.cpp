@@ -284,6 +284,33 @@ TEST_F(Sweep, CompleteShardsAreRecognizedAndOthersAreNot) {
   EXPECT_NE(e.find("describes another sweep: frames is 2, this run has 3"), std::string::npos) << e;
 }
 
+// The digest covers the scene file's bytes: a sweep resumed after its scene changed would
+// mix two scenes, and is refused by name; the digest moves with every setting.
+TEST_F(Sweep, TheDigestCoversSettingsAndSceneBytes) {
+  const fs::path scene = dir / "scene.yaml";
+  std::ofstream(scene) << slurp(kScenes / "static.yaml");
+  SweepSpec spec = tiny();
+  spec.scene = scene;
+  const std::string d = sweep_digest(spec);
+  EXPECT_EQ(d.size(), 16u);
+  EXPECT_EQ(sweep_digest(spec), d);
+  write_manifest(dir / "sweep", spec);
+  EXPECT_NO_THROW(write_manifest(dir / "sweep", spec));
+  std::ofstream(scene, std::ios::app) << "# edited\n";
+  EXPECT_NE(sweep_digest(spec), d);
+  const std::string e = test::error_of([&] { write_manifest(dir / "sweep", spec); });
+  EXPECT_NE(e.find("describes another sweep: digest " + d + ", this run has " + sweep_digest(spec) +
+                   " (a scene file changed since the sweep began"),
+            std::string::npos)
+      << e;
+  SweepSpec other = spec;
+  other.frames = 3;
+  EXPECT_NE(sweep_digest(other), sweep_digest(spec));
+  other = spec;
+  other.set = {"noise.scale=2"};
+  EXPECT_NE(sweep_digest(other), sweep_digest(spec));
+}
+
 // Issue 19, F3: a shard file from another sweep with the same columns (other seeds, another
 // --frames, another mode) copied into this sweep's directory is refused by merge, naming
 // the file, line and field, and is not "complete" to a re-run (which then redoes it).
@@ -313,7 +340,18 @@ TEST_F(Sweep, MergeRefusesAShardOfAnotherSweep) {
   foreign(frames, 2, "cell 1 ran 3 frames, this sweep runs 2 (a shard of another sweep?)");
   SweepSpec modes = spec;
   modes.modes = {parse_mode("paper"), parse_mode("accelerated-som")};
-  foreign(modes, 3, "tracker 'accelerated-som' is not one this sweep compares");
+  foreign(modes, 2, "its sweep digest is '" + sweep_digest(modes) + "', this sweep's is '" +
+                        sweep_digest(spec) + "' (a shard of another sweep");
+  // Issue 59: the same axes, frames and modes, but another --set or another scene: every
+  // row's values match the grid, and only the digest tells.
+  SweepSpec set = spec;
+  set.set = {"noise.scale=2"};
+  foreign(set, 2, "its sweep digest is '" + sweep_digest(set) + "'");
+  const fs::path copy = dir / "static_copy.yaml";
+  std::ofstream(copy) << slurp(kScenes / "static.yaml") << "\n# the same scene, edited\n";
+  SweepSpec scene = spec;
+  scene.scene = copy;
+  foreign(scene, 2, "its sweep digest is '" + sweep_digest(scene) + "'");
   // The sweep's own shard merges.
   run_shard(dir / "mine", spec, 1, 2);
   EXPECT_TRUE(shard_complete(dir / "mine", spec, 1, 2));

@@ -72,6 +72,12 @@ struct SweepCell {
 /// overrides, and its seed. For callers that run the episode themselves.
 [[nodiscard]] Scene sweep_cell_scene(const SweepSpec& spec, std::size_t index);
 
+/// A digest (16 hex digits) of everything that determines a sweep's cells: the scene
+/// path, axes, --set overrides, compared modes and trackers, frames, and the bytes of every
+/// scene file a cell loads. The manifest records it when the sweep begins, every shard row
+/// and cell record carries it, and a file whose digest differs is another sweep's.
+[[nodiscard]] std::string sweep_digest(const SweepSpec& spec);
+
 /// The deterministic columns: cell, mode, one per axis, seed, then the metrics (lengths
 /// in mm, as the names say).
 [[nodiscard]] std::vector<std::string> sweep_columns(const SweepSpec& spec);
@@ -150,6 +156,21 @@ void write_shard_from_records(const std::filesystem::path& dir, const SweepSpec&
 /// Whether DIR/shard_I_of_N.csv exists with the right columns and exactly its cells.
 [[nodiscard]] bool shard_complete(const std::filesystem::path& dir, const SweepSpec& spec,
                                   int shard, int count);
+
+/// Shard I of N run by one process at a time: an exclusive POSIX record lock (fcntl) on
+/// the empty file DIR/shard_I_of_N.lock, held for the object's life and released by the
+/// kernel however the process ends. Two runs of the same shard would remove each other's cell records
+/// (issue 59). Throws InputError naming the lock file and the pid that holds it.
+class ShardLock {
+ public:
+  ShardLock(const std::filesystem::path& dir, int shard, int count);
+  ~ShardLock();
+  ShardLock(const ShardLock&) = delete;
+  ShardLock& operator=(const ShardLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
 
 /// A shard's cells as they complete (issue 19, F8): DIR/shard_I_of_N.cells/CELL.csv, the
 /// cell's rows in the shard file's columns, written atomically as soon as the cell is
