@@ -183,9 +183,8 @@ int run_score(const ScoreOptions& o) {
   const double fps = sim::read_camera_fps(truth_dir / "camera.json");
   const io::Intrinsics K = io::read_intrinsics(truth_dir / "intrinsics.json");
   // The truth's rows: a node per ball and the tip, for each frame of the longest scene.
-  const std::size_t truth_rows =
-      (static_cast<std::size_t>(sim::kMaxDurationS * fps) + 1) *
-      (static_cast<std::size_t>(geometry.count) + 1);
+  const std::size_t truth_rows = (static_cast<std::size_t>(sim::kMaxDurationS * fps) + 1) *
+                                 (static_cast<std::size_t>(geometry.count) + 1);
   const std::vector<std::optional<Nodes>> truth =
       io::read_nodes_csv(truth_dir / "truth.csv", 0, 0, truth_rows);
   const std::size_t frames = truth.size();

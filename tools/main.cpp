@@ -67,7 +67,8 @@ int main(int argc, char** argv) {
     std::string what = e.what();
     for (char& c : what)
       if (c == '\n') c = ' ';  // CLI11's own line breaks
-    std::cerr << "linksight: " << linksight::io::printable_line(what) << " (see linksight --help)\n";
+    std::cerr << "linksight: " << linksight::io::printable_line(what)
+              << " (see linksight --help)\n";
     return kExitBadInput;
   }
   try {

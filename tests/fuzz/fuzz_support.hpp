@@ -2,8 +2,8 @@
 // One fuzz target per reader of outside bytes (issue 19, part 1). Each defines
 // LLVMFuzzerTestOneInput and asserts the contract, not only "no crash": the reader either
 // returns a result that passes its checks, or throws the project's io::InputError with a
-// message that names the input and prints as one line. Anything else (another exception, a message that does
-// not name the file, a result that breaks its own invariants) aborts, which libFuzzer and
+// message that names the input and prints as one line. Anything else (another exception, a message
+// that does not name the file, a result that breaks its own invariants) aborts, which libFuzzer and
 // the corpus replay (replay_main.cpp) report as a finding.
 #include <unistd.h>
 

@@ -27,15 +27,15 @@
 #include <stb/stb_image.h>
 #pragma GCC diagnostic pop
 
+#include "cli_fixture.hpp"
 #include "linksight/io/base_pose.hpp"
 #include "linksight/io/depth_png.hpp"
-#include "linksight/io/ply.hpp"
 #include "linksight/io/intrinsics.hpp"
+#include "linksight/io/ply.hpp"
 #include "linksight/sim/depth_stats.hpp"
 #include "linksight/sim/recording.hpp"
 #include "linksight/sim/scene.hpp"
 #include "linksight/sim/score.hpp"
-#include "cli_fixture.hpp"
 #include "test_support.hpp"
 
 namespace linksight {
@@ -70,7 +70,6 @@ void write_png8(const fs::path& path) {
       0x00, 0x00, 0x00, 0x49, 0x45, 0x4E, 0x44, 0xAE, 0x42, 0x60, 0x82};
   std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(png8), sizeof png8);
 }
-
 
 TEST_F(Cli, HelpDocumentsEveryTrackFlag) {
   const CliRun top = run("--help", dir);
@@ -701,8 +700,9 @@ TEST_F(Cli, ExternalTrackerFailuresAreNamed) {
            command(how) + "' --compare paper,bad";
   };
   for (const auto& [how, says] : std::vector<std::pair<std::string, std::string>>{
-           {"crash", "frame 3: closed its output before answering (it exited with status 3); "
-                     "its stderr ends: broken_tracker: giving up at frame 3"},
+           {"crash",
+            "frame 3: closed its output before answering (it exited with status 3); "
+            "its stderr ends: broken_tracker: giving up at frame 3"},
            {"exit", "frame 3: closed its output before answering (it exited with status 0)"},
            {"orphan", "frame 3: exited with status 3 before answering"},
            {"hang", "frame 3: did not answer within 3 s (scene key external.timeout_s)"},

@@ -40,14 +40,16 @@ TEST_F(Cli, ControlBytesInAKeyNeverReachTheTerminal) {
 TEST_F(Cli, ScoreRefusesDeepJsonAndWhatIsNotAFile) {
   const std::string scene = std::string(LINKSIGHT_SCENE_DIR) + "/static.yaml";
   const fs::path rec = dir / "rec";
-  ASSERT_EQ(run("render --quiet --scene " + scene + " --frames 2 --out " + rec.string(), dir).code, 0);
+  ASSERT_EQ(run("render --quiet --scene " + scene + " --frames 2 --out " + rec.string(), dir).code,
+            0);
   const std::string args = "score --no-figures --truth " + rec.string() + " --estimate x=";
   const std::string truth = (rec / "truth.csv").string();
   ASSERT_EQ(run(args + truth + " --quiet --out " + (dir / "ok").string(), dir).code, 0);
 
   const CliRun folder = run(args + dir.string() + " --out " + out.string(), dir);
   expect_one_printable_line(folder);
-  EXPECT_NE(folder.err.find(dir.string() + ": a folder, not a CSV file"), std::string::npos) << folder.err;
+  EXPECT_NE(folder.err.find(dir.string() + ": a folder, not a CSV file"), std::string::npos)
+      << folder.err;
   const CliRun zero = run(args + "/dev/zero --out " + out.string(), dir);
   expect_one_printable_line(zero);
   EXPECT_NE(zero.err.find("/dev/zero: not a regular file"), std::string::npos) << zero.err;
@@ -63,13 +65,15 @@ TEST_F(Cli, ScoreRefusesDeepJsonAndWhatIsNotAFile) {
   std::ofstream(rec / "chain.json") << bad;
   const CliRun c = run(args + truth + " --out " + out.string(), dir);
   expect_one_printable_line(c);
-  EXPECT_NE(c.err.find("chain.json: JSON nested deeper than 64 levels"), std::string::npos) << c.err;
+  EXPECT_NE(c.err.find("chain.json: JSON nested deeper than 64 levels"), std::string::npos)
+      << c.err;
   std::ofstream(rec / "chain.json") << chain;
   const std::string camera = slurp_text(rec / "camera.json");
   std::ofstream(rec / "camera.json") << "{\"fps\": " << deep << "}";
   const CliRun f = run(args + truth + " --out " + out.string(), dir);
   expect_one_printable_line(f);
-  EXPECT_NE(f.err.find("camera.json: JSON nested deeper than 64 levels (byte 71)"), std::string::npos)
+  EXPECT_NE(f.err.find("camera.json: JSON nested deeper than 64 levels (byte 71)"),
+            std::string::npos)
       << f.err;
   // Shallow but not a number: summarized, not dumped.
   std::ofstream(rec / "camera.json") << "{\"fps\": [1, 2, 3, 4, 5]}";
@@ -88,7 +92,8 @@ TEST_F(Cli, ScoreRefusesDeepJsonAndWhatIsNotAFile) {
 TEST_F(Cli, OneShardRunsInOneProcessAtATime) {
   const std::string args = "sweep --scene " + std::string(LINKSIGHT_SCENE_DIR) +
                            "/static.yaml --axis noise.scale=0,1 --frames 1 --compare paper "
-                           "--no-figures --quiet --shard 0/2 --out " + out.string();
+                           "--no-figures --quiet --shard 0/2 --out " +
+                           out.string();
   fs::create_directories(out);
   const int fd = ::open((out / "shard_0_of_2.lock").c_str(), O_RDWR | O_CREAT, 0644);
   ASSERT_GE(fd, 0);
@@ -104,7 +109,8 @@ TEST_F(Cli, OneShardRunsInOneProcessAtATime) {
       << held.err;
   EXPECT_FALSE(fs::exists(out / "shard_0_of_2.cells"));
   // Another shard of the same sweep runs beside it.
-  const CliRun other = run(args.substr(0, args.find("--shard")) + "--shard 1/2 --out " + out.string(), dir);
+  const CliRun other =
+      run(args.substr(0, args.find("--shard")) + "--shard 1/2 --out " + out.string(), dir);
   EXPECT_EQ(other.code, 0) << other.err;
   ::close(fd);  // the kernel releases the lock, as it does when a process ends
   const CliRun now = run(args, dir);

@@ -163,7 +163,8 @@ namespace {
 // A JSON file of a recording, or an error naming it.
 nlohmann::json read_json(const fs::path& path) {
   const std::string file = path.string();
-  const std::string text = io::read_json_file(path, "cannot open (a recording from `linksight render`)");
+  const std::string text =
+      io::read_json_file(path, "cannot open (a recording from `linksight render`)");
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(text);
@@ -188,7 +189,8 @@ struct ChainJsonIn {
     const double x = it->get<double>();
     if constexpr (std::is_integral_v<T>) {
       if (!(x >= -1e9 && x <= 1e9) || x != std::floor(x))
-        throw io::InputError(file + ": " + key + " = " + io::json_summary(*it) + ": not a whole number");
+        throw io::InputError(file + ": " + key + " = " + io::json_summary(*it) +
+                             ": not a whole number");
       v = static_cast<T>(x);
     } else {
       v = x;
@@ -203,7 +205,8 @@ double read_camera_fps(const fs::path& path) {
   const auto it = j.find("fps");
   if (it == j.end()) throw io::InputError(path.string() + ": no key 'fps'");
   if (!it->is_number() || !(it->get<double>() > 0 && it->get<double>() <= 10000))
-    throw io::InputError(path.string() + ": fps = " + io::json_summary(*it) + ": must be in (0, 10000]");
+    throw io::InputError(path.string() + ": fps = " + io::json_summary(*it) +
+                         ": must be in (0, 10000]");
   return it->get<double>();
 }
 

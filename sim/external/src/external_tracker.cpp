@@ -449,8 +449,8 @@ ExternalAnswer answer_from_json(const nlohmann::json& a, const std::string& line
       return lost("node " + std::to_string(j) + " is not [x, y, z]: " + io::json_summary(q));
     for (int c = 0; c < 3; ++c) {
       if (!q[static_cast<std::size_t>(c)].is_number())
-        return lost("node " + std::to_string(j) + " is not [x, y, z] of numbers: " +
-                    io::json_summary(q));
+        return lost("node " + std::to_string(j) +
+                    " is not [x, y, z] of numbers: " + io::json_summary(q));
       const double v = q[static_cast<std::size_t>(c)].get<double>();
       if (!std::isfinite(v) || std::abs(v) > kMaxCoordinate)
         return lost("node " + std::to_string(j) + " has a coordinate that is not a finite " +

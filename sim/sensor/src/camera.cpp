@@ -41,7 +41,8 @@ void CameraParams::validate() const {
   intrinsics.validate();
   if (static_cast<long long>(intrinsics.width) * intrinsics.height > io::kMaxDepthPngPixels)
     fields::fail("camera", "height", intrinsics.height,
-                 "makes " + format_shortest(static_cast<double>(intrinsics.width) * intrinsics.height) +
+                 "makes " +
+                     format_shortest(static_cast<double>(intrinsics.width) * intrinsics.height) +
                      " pixels with width " + std::to_string(intrinsics.width) + ", more than " +
                      format_shortest(static_cast<double>(io::kMaxDepthPngPixels)) +
                      " (what a recording's depth PNG may hold)");

@@ -5,10 +5,10 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cstring>
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <limits>
@@ -21,11 +21,11 @@
 #include <nlohmann/json.hpp>
 
 #include "linksight/io/atomic_file.hpp"
+#include "linksight/io/csv.hpp"
 #include "linksight/io/error.hpp"
 #include "linksight/io/json_input.hpp"
 #include "linksight/sim/episode.hpp"
 #include "linksight/sim/scene.hpp"
-#include "linksight/io/csv.hpp"
 #include "linksight/sim/yaml.hpp"
 #include "linksight/tracker/format.hpp"
 #include "linksight/tracker/seed.hpp"
@@ -354,9 +354,9 @@ std::string shard_file_name(int shard, int count) {
 }
 
 namespace {
-nlohmann::json manifest_json(const SweepSpec& spec) {
+// The settings that determine a sweep's cells, as its manifest records them.
+nlohmann::json settings_json(const SweepSpec& spec) {
   nlohmann::json j;
-  j["version"] = kManifestVersion;
   j["scene"] = spec.scene.string();
   j["axes"] = nlohmann::json::array();
   for (const SweepAxis& a : spec.axes) j["axes"].push_back({{"key", a.key}, {"values", a.values}});
@@ -373,6 +373,12 @@ nlohmann::json manifest_json(const SweepSpec& spec) {
       j["external"].push_back({{"name", e.name}, {"command", e.command}});
   }
   j["frames"] = spec.frames;
+  return j;
+}
+
+nlohmann::json manifest_json(const SweepSpec& spec) {
+  nlohmann::json j = settings_json(spec);
+  j["version"] = kManifestVersion;
   j["cells"] = spec.cells();
   j["digest"] = sweep_digest(spec);
   return j;
@@ -381,7 +387,8 @@ nlohmann::json manifest_json(const SweepSpec& spec) {
 // The digest a manifest was written with.
 std::string stored_digest(const fs::path& dir) {
   const fs::path path = dir / kManifest;
-  const nlohmann::json j = nlohmann::json::parse(io::read_json_file(path, "no sweep manifest here"));
+  const nlohmann::json j =
+      nlohmann::json::parse(io::read_json_file(path, "no sweep manifest here"));
   const auto d = j.find("digest");
   const std::string digest = d != j.end() && d->is_string() ? d->get<std::string>() : "";
   if (digest.size() != 16 || digest.find_first_not_of("0123456789abcdef") != std::string::npos)
@@ -399,19 +406,7 @@ std::string sweep_digest(const SweepSpec& spec) {
     for (const std::string_view p : {std::string_view(framed), part})
       for (const char c : p) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001b3ull;
   };
-  nlohmann::json j;
-  j["scene"] = spec.scene.string();
-  j["axes"] = nlohmann::json::array();
-  for (const SweepAxis& a : spec.axes) j["axes"].push_back({{"key", a.key}, {"values", a.values}});
-  j["set"] = spec.set;
-  j["modes"] = nlohmann::json::array();
-  for (const TrackerMode m : spec.modes) j["modes"].push_back(std::string(to_string(m)));
-  j["scene_mode"] = spec.scene_mode;
-  j["external"] = nlohmann::json::array();
-  for (const ExternalTrackerSpec& e : spec.external)
-    j["external"].push_back({{"name", e.name}, {"command", e.command}});
-  j["frames"] = spec.frames;
-  add(j.dump());
+  add(settings_json(spec).dump());
   // The bytes of every scene file a cell loads: the base scene and each `scene` axis value.
   std::vector<fs::path> scenes;
   if (!spec.scene.empty()) scenes.push_back(spec.scene);
@@ -419,7 +414,10 @@ std::string sweep_digest(const SweepSpec& spec) {
     if (a.key == "scene")
       for (const std::string& v : a.values) scenes.emplace_back(v);
   for (const fs::path& p : scenes) {
-    std::ifstream in(p, std::ios::binary);
+    // Only a regular file is read: a FIFO would block here (load_scene refuses it later).
+    std::error_code ec;
+    std::ifstream in;
+    if (fs::is_regular_file(p, ec)) in.open(p, std::ios::binary);
     std::string bytes;
     char buf[4096];
     while (in.read(buf, sizeof buf) || in.gcount() > 0) {
@@ -460,8 +458,7 @@ void write_manifest(const fs::path& dir, const SweepSpec& spec) {
     // mix two scenes.
     if (const std::string had = stored_digest(dir); had != want.at("digest").get<std::string>())
       throw io::InputError(path.string() + " describes another sweep: digest " + had +
-                           ", this run has " +
-                           want.at("digest").get<std::string>() +
+                           ", this run has " + want.at("digest").get<std::string>() +
                            " (a scene file changed since the sweep began; use another --out, "
                            "or --force to start over)");
     return;
@@ -608,8 +605,8 @@ void check_shard_row(const SweepSpec& spec, const std::string& digest,
   for (std::size_t k = 0; k < values.size(); ++k)
     if (row[2 + k] != values[k])
       throw io::InputError(at + "cell " + row[0] + "'s " + header[2 + k] + " is '" +
-                           io::echo(row[2 + k]) + "', this sweep's grid has '" + io::echo(values[k]) +
-                           "' (a shard of another sweep?)");
+                           io::echo(row[2 + k]) + "', this sweep's grid has '" +
+                           io::echo(values[k]) + "' (a shard of another sweep?)");
   bool known = spec.modes.empty() && spec.scene_mode;  // the scene's own mode: any mode
   if (known) {
     try {
@@ -635,9 +632,9 @@ void check_shard_row(const SweepSpec& spec, const std::string& digest,
   // Another sweep's shard with the same axes and frames (another --set or scene) has
   // the same columns and axis values: only the digest tells (issue 59).
   if (row.back() != digest)
-    throw io::InputError(at + "its sweep digest is '" + io::echo(row.back()) + "', this sweep's is '" +
-                         digest + "' (a shard of another sweep: another scene, --set, axis, " +
-                         "frames or tracker)");
+    throw io::InputError(
+        at + "its sweep digest is '" + io::echo(row.back()) + "', this sweep's is '" + digest +
+        "' (a shard of another sweep: another scene, --set, axis, " + "frames or tracker)");
 }
 }  // namespace
 
@@ -773,7 +770,8 @@ MergeResult merge_sweep(const fs::path& dir) {
                            (dir / kManifest).string() + "'s sweep");
     for (std::size_t i = 0; i < f.rows.size(); ++i) {
       check_shard_row(spec, digest, header, f.rows[i], path, f.lines[i]);
-      std::vector<std::string>& row = by_cell[parse_index(f.rows[i][0], path)].emplace_back(f.rows[i]);
+      std::vector<std::string>& row =
+          by_cell[parse_index(f.rows[i][0], path)].emplace_back(f.rows[i]);
       row.pop_back();  // the digest: not in the merged tables
     }
     ++result.shard_files;

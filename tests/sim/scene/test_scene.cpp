@@ -126,8 +126,8 @@ TEST_F(BadScene, ErrorsNameLineAndKey) {
   has("\"a\\nb\": 1\n", ":1: a\\nb: unknown key");
   has("\"k\\e[2J\\rlinksight: all good\": 1\n", ":1: k\\x1B[2J\\rlinksight: all good: unknown key");
   has("\"x\\u202Ey\": 1\n", ":1: x\\u{202E}y: unknown key");
-  for (const std::string& key : std::vector<std::string>{"\"a\\nb\": 1\n", "\"\\e[2J\\r\": 1\n",
-                                                      "\"" + std::string(5000, 'k') + "\": 1\n"}) {
+  for (const std::string& key : std::vector<std::string>{
+           "\"a\\nb\": 1\n", "\"\\e[2J\\r\": 1\n", "\"" + std::string(5000, 'k') + "\": 1\n"}) {
     const std::string e = error_of(key);
     EXPECT_TRUE(io::is_printable_line(e)) << e;
     EXPECT_LE(e.size(), 600u) << e;

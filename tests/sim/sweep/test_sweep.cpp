@@ -340,8 +340,9 @@ TEST_F(Sweep, MergeRefusesAShardOfAnotherSweep) {
   foreign(frames, 2, "cell 1 ran 3 frames, this sweep runs 2 (a shard of another sweep?)");
   SweepSpec modes = spec;
   modes.modes = {parse_mode("paper"), parse_mode("accelerated-som")};
-  foreign(modes, 2, "its sweep digest is '" + sweep_digest(modes) + "', this sweep's is '" +
-                        sweep_digest(spec) + "' (a shard of another sweep");
+  foreign(modes, 2,
+          "its sweep digest is '" + sweep_digest(modes) + "', this sweep's is '" +
+              sweep_digest(spec) + "' (a shard of another sweep");
   // Issue 59: the same axes, frames and modes, but another --set or another scene: every
   // row's values match the grid, and only the digest tells.
   SweepSpec set = spec;

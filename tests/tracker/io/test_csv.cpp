@@ -63,7 +63,8 @@ TEST(Csv, EachLimitIsRefusedByNameWhileReading) {
     big << "a\n" << std::string(std::size_t{1} << 24, '9') << "\n";
   }
   EXPECT_EQ(error_of(dir / "line.csv", rows(10)),
-            (dir / "line.csv").string() + ":2: a line of 65536 bytes or more (a row of this table is short)");
+            (dir / "line.csv").string() +
+                ":2: a line of 65536 bytes or more (a row of this table is short)");
   {
     std::ofstream wide(dir / "wide.csv");
     for (int k = 0; k < 40000; ++k) wide << "c,";

@@ -95,8 +95,10 @@ TEST_F(DepthPng, AnEmptyFirstIdatIsRefusedBeforeDecoding) {
   const char empty_idat[] = {0, 0, 0, 0, 'I', 'D', 'A', 'T', '\x35', '\xAF', '\x06', '\x1E'};
   const auto write_with_empty_idat_at = [&](const char* name, std::size_t at) {
     std::vector<char> b = bytes;
-    b.insert(b.begin() + static_cast<std::ptrdiff_t>(at), std::begin(empty_idat), std::end(empty_idat));
-    std::ofstream(dir / name, std::ios::binary).write(b.data(), static_cast<std::streamsize>(b.size()));
+    b.insert(b.begin() + static_cast<std::ptrdiff_t>(at), std::begin(empty_idat),
+             std::end(empty_idat));
+    std::ofstream(dir / name, std::ios::binary)
+        .write(b.data(), static_cast<std::streamsize>(b.size()));
   };
   write_with_empty_idat_at("first.png", 33);  // before the data's IDAT
   EXPECT_EQ(test::error_of([&] { (void)read_depth_png(dir / "first.png"); }),
@@ -118,8 +120,10 @@ TEST_F(DepthPng, ImagesLargerThanACameraDeliversAreRefusedFromTheHeader) {
     std::ofstream(dir / name, std::ios::binary) << png << std::string(1000, '\0');
     return test::error_of([&] { (void)read_depth_png(dir / name); });
   };
-  const std::string limits = " pixels is more than a camera image may have (4194304 pixels, 4096 a side)";
-  EXPECT_EQ(header_only("big.png", 4096, 4096), (dir / "big.png").string() + ": 4096x4096" + limits);
+  const std::string limits =
+      " pixels is more than a camera image may have (4194304 pixels, 4096 a side)";
+  EXPECT_EQ(header_only("big.png", 4096, 4096),
+            (dir / "big.png").string() + ": 4096x4096" + limits);
   EXPECT_EQ(header_only("side.png", 4097, 1), (dir / "side.png").string() + ": 4097x1" + limits);
   // Under the cap the header passes and the decoder says what is wrong with the rest.
   EXPECT_EQ(header_only("hd.png", 1920, 1080).find(limits), std::string::npos);

@@ -28,9 +28,10 @@ TEST(Echo, ControlAndNonUtf8BytesAreEscaped) {
   // Printable UTF-8 passes; a C1 control, a right-to-left override and a zero-width space
   // do not.
   EXPECT_EQ(escape_controls("Größe 5 µm"), "Größe 5 µm");
-  EXPECT_EQ(escape_controls("\xC2\x9B" "2J"), "\\u{009B}2J");
-  EXPECT_EQ(escape_controls("a\xE2\x80\xAE" "b"), "a\\u{202E}b");
-  EXPECT_EQ(escape_controls("a\xE2\x80\x8B" "b"), "a\\u{200B}b");
+  // ("\x32" is '2' and "\x62" 'b': a hex escape would take a following digit or letter.)
+  EXPECT_EQ(escape_controls("\xC2\x9B\x32J"), "\\u{009B}2J");
+  EXPECT_EQ(escape_controls("a\xE2\x80\xAE\x62"), "a\\u{202E}b");
+  EXPECT_EQ(escape_controls("a\xE2\x80\x8B\x62"), "a\\u{200B}b");
 }
 
 TEST(Echo, LongTextIsCutAtACharacterWithItsSize) {
@@ -91,7 +92,8 @@ TEST(JsonInput, AFileIsCheckedBeforeParsing) {
   };
   std::ofstream(dir / "ok.json") << "{\"a\": [1, 2]}";
   EXPECT_EQ(read_json_file(dir / "ok.json", ""), "{\"a\": [1, 2]}");
-  EXPECT_EQ(error_of(dir / "none.json"), (dir / "none.json").string() + ": no such file (a recording?)");
+  EXPECT_EQ(error_of(dir / "none.json"),
+            (dir / "none.json").string() + ": no such file (a recording?)");
   std::ofstream(dir / "deep.json") << std::string(70, '[');
   EXPECT_EQ(error_of(dir / "deep.json"),
             (dir / "deep.json").string() + ": JSON nested deeper than 64 levels (byte 64)");
@@ -104,8 +106,9 @@ TEST(JsonInput, AFileIsCheckedBeforeParsing) {
     std::ofstream big(dir / "big.json");
     big << '"' << std::string(kMaxJsonFileBytes, 'x') << '"';
   }
-  EXPECT_NE(error_of(dir / "big.json").find("big.json: 16777218 bytes, more than a JSON input may have"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of(dir / "big.json").find("big.json: 16777218 bytes, more than a JSON input may have"),
+      std::string::npos);
 }
 
 }  // namespace

@@ -72,8 +72,9 @@ TEST_F(IntrinsicsFile, Errors) {
                                 "view of 1 degree or more)"),
             std::string::npos)
       << error_of(huge);
-  for (const auto& [value, key] : {std::pair{"\"fy\": 1e6", "intrinsics.fy = 1000000: must be in"},
-                                   std::pair{"\"depth_scale\": 1000", "intrinsics.depth_scale = 1000"}}) {
+  for (const auto& [value, key] :
+       {std::pair{"\"fy\": 1e6", "intrinsics.fy = 1000000: must be in"},
+        std::pair{"\"depth_scale\": 1000", "intrinsics.depth_scale = 1000"}}) {
     std::string s = kGood;
     const std::string k = std::string(value).substr(0, std::string(value).find(':') + 1);
     const std::size_t at = s.find(k);
@@ -83,8 +84,8 @@ TEST_F(IntrinsicsFile, Errors) {
   }
   // Issue 59: a value nested 100,000 deep is refused before it is parsed, and a key's
   // control bytes are escaped.
-  EXPECT_NE(error_of("{\"width\": " + std::string(100000, '[')).find(
-                "JSON nested deeper than 64 levels (byte 73)"),
+  EXPECT_NE(error_of("{\"width\": " + std::string(100000, '['))
+                .find("JSON nested deeper than 64 levels (byte 73)"),
             std::string::npos);
   EXPECT_NE(error_of("{\"wid\\u001bth\\r\": 640}").find("unknown key 'wid\\x1Bth\\r'"),
             std::string::npos)

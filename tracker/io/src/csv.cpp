@@ -17,8 +17,7 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
-bool read_bounded_line(std::istream& in, std::string& line, std::size_t max_bytes,
-                       bool& too_long) {
+bool read_bounded_line(std::istream& in, std::string& line, std::size_t max_bytes, bool& too_long) {
   line.clear();
   too_long = false;
   std::streambuf* buf = in.rdbuf();

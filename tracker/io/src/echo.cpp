@@ -50,8 +50,7 @@ void append_hex(std::string& out, const char* format, unsigned value) {
 
 // Escapes s[i, end) into out; returns where it stopped (end, or the character that would
 // carry out past `limit` bytes).
-std::size_t escape_into(std::string& out, std::string_view s, std::size_t end,
-                        std::size_t limit) {
+std::size_t escape_into(std::string& out, std::string_view s, std::size_t end, std::size_t limit) {
   std::size_t i = 0;
   while (i < end) {
     std::uint32_t cp = 0;
@@ -80,9 +79,7 @@ std::size_t escape_into(std::string& out, std::string_view s, std::size_t end,
   return i;
 }
 
-std::string cut_note(std::size_t bytes) {
-  return "... (" + std::to_string(bytes) + " bytes)";
-}
+std::string cut_note(std::size_t bytes) { return "... (" + std::to_string(bytes) + " bytes)"; }
 
 }  // namespace
 

@@ -50,7 +50,8 @@ std::string read_json_file(const std::filesystem::path& path, const std::string&
   const std::uintmax_t size = fs::file_size(path, ec);
   if (ec) throw InputError(file + ": cannot be read");
   if (size > kMaxJsonFileBytes)
-    throw InputError(file + ": " + std::to_string(size) + " bytes, more than a JSON input may have (" +
+    throw InputError(file + ": " + std::to_string(size) +
+                     " bytes, more than a JSON input may have (" +
                      std::to_string(kMaxJsonFileBytes) + ")");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(file + ": cannot be read");

@@ -134,8 +134,7 @@ Cloud read_ply(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw fail("cannot open");
   std::string line;
-  if (!ply_line(in, line, fail) || (line != "ply" && line != "ply\r"))
-    throw fail("not a PLY file");
+  if (!ply_line(in, line, fail) || (line != "ply" && line != "ply\r")) throw fail("not a PLY file");
 
   enum class Format { ascii, binary_le } format = Format::ascii;
   bool have_format = false;
@@ -206,7 +205,8 @@ Cloud read_ply(const std::filesystem::path& path) {
     int* slot = p.name == "x" ? &ix : p.name == "y" ? &iy : p.name == "z" ? &iz : nullptr;
     if (slot == nullptr) continue;
     if (p.is_list || (p.type != Type::f32 && p.type != Type::f64)) {
-      throw fail("unsupported type for vertex property '" + echo(p.name) + "' (float or double only)");
+      throw fail("unsupported type for vertex property '" + echo(p.name) +
+                 "' (float or double only)");
     }
     *slot = static_cast<int>(k);
   }
@@ -214,7 +214,8 @@ Cloud read_ply(const std::filesystem::path& path) {
     throw fail(std::string("vertex element lacks property ") + (ix < 0 ? "x" : iy < 0 ? "y" : "z"));
   }
   for (const Property& p : vertex.props) {
-    if (p.is_list) throw fail("unsupported: list property '" + echo(p.name) + "' in the vertex element");
+    if (p.is_list)
+      throw fail("unsupported: list property '" + echo(p.name) + "' in the vertex element");
   }
   // Everything after the header, to check counts against before trusting them.
   const std::streamoff data_begin = in.tellg();

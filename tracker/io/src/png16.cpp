@@ -133,7 +133,8 @@ std::vector<char> read_png_checked(const std::filesystem::path& path) {
                      std::to_string(kMaxDepthPngSide) + " a side)");
   // A 16-bit PNG of the most pixels, stored uncompressed, is about 2 bytes a pixel: a
   // larger file is refused before it is read in.
-  constexpr std::uintmax_t kMaxBytes = 4 * static_cast<std::uintmax_t>(kMaxDepthPngPixels) + (1 << 20);
+  constexpr std::uintmax_t kMaxBytes =
+      4 * static_cast<std::uintmax_t>(kMaxDepthPngPixels) + (1 << 20);
   const std::uintmax_t file_bytes = std::filesystem::file_size(path, ec);
   if (ec) throw InputError(file + ": cannot read (" + ec.message() + ")");
   if (file_bytes > kMaxBytes)

@@ -4,8 +4,8 @@
 #include <Eigen/Geometry>
 
 #include "linksight/io/intrinsics.hpp"
-#include "linksight/tracker/limits.hpp"
 #include "linksight/tracker/fields.hpp"
+#include "linksight/tracker/limits.hpp"
 
 namespace linksight::sim {
 

@@ -159,8 +159,8 @@ void write_shard_from_records(const std::filesystem::path& dir, const SweepSpec&
 
 /// Shard I of N run by one process at a time: an exclusive POSIX record lock (fcntl) on
 /// the empty file DIR/shard_I_of_N.lock, held for the object's life and released by the
-/// kernel however the process ends. Two runs of the same shard would remove each other's cell records
-/// (issue 59). Throws InputError naming the lock file and the pid that holds it.
+/// kernel however the process ends. Two runs of the same shard would remove each other's cell
+/// records (issue 59). Throws InputError naming the lock file and the pid that holds it.
 class ShardLock {
  public:
   ShardLock(const std::filesystem::path& dir, int shard, int count);

@@ -18,15 +18,14 @@ namespace linksight::io {
 /// `max_bytes` of it: true for a line, false at the end of the input; a line of
 /// `max_bytes` bytes or more sets `too_long` and returns true with `line` cut. One reader
 /// of bounded lines for the text formats (CSV, PLY).
-bool read_bounded_line(std::istream& in, std::string& line, std::size_t max_bytes,
-                       bool& too_long);
+bool read_bounded_line(std::istream& in, std::string& line, std::size_t max_bytes, bool& too_long);
 
 /// What a CSV input may hold, each checked while it is read. Each caller derives
 /// `max_rows` from what its file can legitimately hold (a truth's frames x nodes, a
 /// shard's cells x modes): a file with more is not that file.
 struct CsvLimits {
-  std::size_t max_rows = 0;                       ///< data rows, blank lines not counted
-  std::size_t max_columns = 64;                   ///< fields in the header
+  std::size_t max_rows = 0;                           ///< data rows, blank lines not counted
+  std::size_t max_columns = 64;                       ///< fields in the header
   std::size_t max_line_bytes = std::size_t{1} << 16;  ///< bytes in a line, '\n' excluded
 };
 

@@ -22,8 +22,9 @@ namespace linksight::io {
 /// the table can hold, checked while reading: rows_with_room of `max_rows` when given,
 /// else of frames x nodes when both are given, else kMaxCsvRows (limits.hpp); and
 /// read_csv's refusals.
-[[nodiscard]] std::vector<std::optional<Nodes>> read_nodes_csv(
-    const std::filesystem::path& path, std::size_t frames = 0, std::size_t nodes = 0,
-    std::size_t max_rows = 0);
+[[nodiscard]] std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& path,
+                                                               std::size_t frames = 0,
+                                                               std::size_t nodes = 0,
+                                                               std::size_t max_rows = 0);
 
 }  // namespace linksight::io
