@@ -32,7 +32,8 @@ inline std::vector<TrackerMode> parse_compare(const std::string& list) {
   std::vector<TrackerMode> modes;
   std::stringstream ss(list);
   for (std::string item; std::getline(ss, item, ',');) {
-    if (item.empty()) throw std::invalid_argument("--compare '" + list + "': empty mode name");
+    if (item.empty())
+      throw std::invalid_argument("--compare '" + io::echo(list) + "': empty mode name");
     try {
       modes.push_back(parse_mode(item));
     } catch (const std::invalid_argument& e) {
@@ -84,8 +85,8 @@ class InterruptGuard {
     given.push_back(sim::parse_external_tracker(t));
     for (std::size_t j = 0; j + 1 < given.size(); ++j)
       if (given[j].name == given.back().name)
-        throw std::invalid_argument("--tracker '" + t + "': the name '" + given.back().name +
-                                    "' is given twice");
+        throw std::invalid_argument("--tracker '" + io::echo(t) + "': the name '" +
+                                    io::echo(given.back().name) + "' is given twice");
   }
   modes.clear();
   external.clear();
@@ -96,11 +97,12 @@ class InterruptGuard {
   std::vector<bool> used(given.size(), false);
   std::stringstream ss(compare);
   for (std::string item; std::getline(ss, item, ',');) {
-    if (item.empty()) throw std::invalid_argument("--compare '" + compare + "': empty name");
+    if (item.empty())
+      throw std::invalid_argument("--compare '" + io::echo(compare) + "': empty name");
     std::size_t k = 0;
     while (k < given.size() && given[k].name != item) ++k;
     if (k < given.size()) {
-      if (used[k]) throw std::invalid_argument("--compare: '" + item + "' given twice");
+      if (used[k]) throw std::invalid_argument("--compare: '" + io::echo(item) + "' given twice");
       used[k] = true;
       external.push_back(given[k]);
       continue;
@@ -114,8 +116,8 @@ class InterruptGuard {
   }
   for (std::size_t k = 0; k < given.size(); ++k)
     if (!used[k])
-      throw std::invalid_argument("--tracker '" + given[k].name + "=...': not in --compare '" +
-                                  compare + "'");
+      throw std::invalid_argument("--tracker '" + io::echo(given[k].name) +
+                                  "=...': not in --compare '" + compare + "'");
   // Only a --compare without a built-in mode runs no scene mode (with modes named it does
   // not matter; true keeps the sweep manifest as before).
   return !modes.empty();

@@ -332,7 +332,7 @@ int run_calibrate(const CalibrateOptions& o) {
     warn = run_plot_script(
         script_path("LINKSIGHT_FIDELITY_PLOT_SCRIPT", LINKSIGHT_FIDELITY_PLOT_SCRIPT), o.report,
         o.quiet);
-  if (!warn.empty()) std::cerr << "linksight calibrate-noise: " << warn << "\n";
+  if (!warn.empty()) std::cerr << "linksight calibrate-noise: " << io::printable_line(warn) << "\n";
   if (!o.quiet) {
     print_report(std::cout, source_line, stats, fit, shape_p);
     std::cout << "\nwrote " << o.out << " (a noise: block for a scene file)";

@@ -286,7 +286,7 @@ int run_fidelity(const FidelityOptions& o) {
         o.quiet);
   out.commit();
   if (!o.quiet) std::cout << text.str();
-  if (!warn.empty()) std::cerr << "linksight fidelity: " << warn << "\n";
+  if (!warn.empty()) std::cerr << "linksight fidelity: " << io::printable_line(warn) << "\n";
   if (!o.quiet) std::cout << "wrote " << o.out << "/fidelity.txt, fidelity.json"
                           << (o.no_figures ? "" : ", figures/") << "\n";
   return kExitOk;

@@ -166,17 +166,21 @@ int run_run(const RunOptions& o) {
   }
   dir.commit();
 
-  if (!figures_note.empty()) std::cerr << "linksight: warning: " << figures_note << "\n";
+  if (!figures_note.empty())
+    std::cerr << "linksight: warning: " << io::printable_line(figures_note) << "\n";
   if (!o.quiet) {
     std::cout << (done < n ? "interrupted after " : "ran ") << done << " frames of " << o.scene
               << " (" << format_fixed(done / std::max(wall, 1e-9), 1) << " frames/s)\n";
     report.print_table(std::cout, summaries);
     for (std::size_t k = 0; k < names.size(); ++k)
       if (!lost_notes[k].empty())
-        std::cerr << "linksight: warning: " << names[k] << ": " << lost_notes[k].size()
-                  << " frame(s) lost, the first (frame " << lost_notes[k][0]["frame"].get<int>()
-                  << "): " << lost_notes[k][0]["reason"].get<std::string>()
-                  << " (all in summary.json)\n";
+        std::cerr << io::printable_line("linksight: warning: " + names[k] + ": " +
+                                        std::to_string(lost_notes[k].size()) +
+                                        " frame(s) lost, the first (frame " +
+                                        std::to_string(lost_notes[k][0]["frame"].get<int>()) +
+                                        "): " + lost_notes[k][0]["reason"].get<std::string>() +
+                                        " (all in summary.json)")
+                  << "\n";
     std::cout << "wrote " << out.string() << "/{frames.csv,nodes.csv,summary.json}"
               << (figures_note.empty() && o.figures
                       ? ", figures in " + out.string() + "/figures/, 3-D view " + out.string() + "/view.html"

@@ -63,7 +63,7 @@ Estimate parse_estimate(const std::string& text) {
   for (const char c : name)
     ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.');
   if (!ok)
-    throw std::invalid_argument("--estimate '" + text + "': the name '" + name +
+    throw std::invalid_argument("--estimate '" + io::echo(text) + "': the name '" + io::echo(name) +
                                 "' must be 1-40 letters, digits, '-', '_' or '.', not 'truth'");
   return {name, text.substr(eq + 1), {}};
 }
@@ -156,8 +156,8 @@ int run_score(const ScoreOptions& o) {
   for (const std::string& e : o.estimates) {
     estimates.push_back(parse_estimate(e));
     if (!names_seen.insert(estimates.back().name).second)
-      throw std::invalid_argument("--estimate '" + e + "': the name '" + estimates.back().name +
-                                  "' is given twice");
+      throw std::invalid_argument("--estimate '" + io::echo(e) + "': the name '" +
+                                  estimates.back().name + "' is given twice");
   }
   const fs::path truth_dir(o.truth);
   std::error_code ec;
@@ -277,7 +277,8 @@ int run_score(const ScoreOptions& o) {
   if (o.figures)
     figures_note = draw_figures(stage, o.quiet);
   dir.commit();
-  if (!figures_note.empty()) std::cerr << "linksight: warning: " << figures_note << "\n";
+  if (!figures_note.empty())
+    std::cerr << "linksight: warning: " << io::printable_line(figures_note) << "\n";
   if (!o.quiet) {
     std::cout << "scored " << estimates.size() << " estimate" << (estimates.size() > 1 ? "s" : "")
               << " against " << frames << " frames of " << o.truth << "\n";

@@ -99,14 +99,16 @@ int merge_and_report(const fs::path& dir, bool figures, bool quiet) {
   if (!m.failed.empty()) {
     std::cerr << "linksight: warning: " << m.failed.size() << " cell(s) failed and have no rows ("
               << (dir / "cells_failed.csv").string() << "):";
-    for (const sim::SweepFailure& f : m.failed) std::cerr << "\n  cell " << f.cell << ": " << f.error;
+    // A cell's error comes from a shard's .failed.csv: one printable line each.
+    for (const sim::SweepFailure& f : m.failed)
+      std::cerr << "\n  cell " << f.cell << ": " << io::printable_line(f.error);
     std::cerr << "\n";
   }
   if (figures) {
     const std::string note = run_plot_script(
         script_path("LINKSIGHT_SWEEP_PLOT_SCRIPT", LINKSIGHT_SWEEP_PLOT_SCRIPT), dir, quiet);
     if (!note.empty()) {
-      std::cerr << "linksight: warning: " << note << "\n";
+      std::cerr << "linksight: warning: " << io::printable_line(note) << "\n";
     } else if (!quiet) {
       std::cout << "heatmaps: " << (dir / "figures").string() << "/\n";
     }
@@ -179,7 +181,8 @@ int run_sweep(const SweepOptions& o) {
         for (const sim::SweepRow& r : *done) {
           if (!r.lost_note.empty()) {
             if (bar) std::cerr << "\n";
-            std::cerr << "linksight: warning: cell " << cells[k] << ": " << r.lost_note << "\n";
+            std::cerr << "linksight: warning: cell " << cells[k] << ": "
+                      << io::printable_line(r.lost_note) << "\n";
           }
         }
       } catch (const sim::ExternalTrackerInterrupted&) {

@@ -179,19 +179,19 @@ int run_track(const TrackOptions& o) {
     const FrameResult r = tracker.step(cloud, base_poses.empty() ? nullptr : &base_poses[f],
                                        view ? &*view : nullptr);
     if (r.n_out_of_range > 0 && !r.lost) {
-      std::cerr << "linksight: " << path.string() << ": dropped " << r.n_out_of_range
-                << " points beyond " << kMaxCoordinate << " m\n";
+      std::cerr << "linksight: " << io::echo(path.string(), io::kMaxMessage) << ": dropped "
+                << r.n_out_of_range << " points beyond " << kMaxCoordinate << " m\n";
     }
     if (r.n_non_finite > 0 && !r.lost) {
-      std::cerr << "linksight: " << path.string() << ": dropped " << r.n_non_finite
-                << " non-finite points\n";
+      std::cerr << "linksight: " << io::echo(path.string(), io::kMaxMessage) << ": dropped "
+                << r.n_non_finite << " non-finite points\n";
     }
     if (r.lost) {
       const std::string why =
           path.string() + ": frame lost (" + std::string(to_string(r.lost_reason)) + ", " +
           std::to_string(r.n_points) + " finite points, " + std::to_string(p.nodes) + " nodes)";
       if (o.lost_frames == "error") throw io::InputError(why);
-      std::cerr << "linksight: " << why << "\n";
+      std::cerr << "linksight: " << io::printable_line(why) << "\n";
       ++lost;
     }
     reinits += r.reinit ? 1 : 0;

@@ -49,6 +49,8 @@ constexpr std::size_t kMaxAnswer = kMaxAnswerBytes;
 // What an error quotes of the tracker's stderr, and of an answer that is not JSON.
 constexpr int kStderrLines = 8;
 constexpr std::size_t kStderrLineBytes = 200;
+// What an error shows of the tracker's command: the user's own, and often a long path.
+constexpr std::size_t kCommandBytes = 400;
 constexpr std::size_t kQuote = 80;
 
 std::string quote_answer(const std::string& s) {
@@ -153,7 +155,8 @@ ExternalTracker::ExternalTracker(ExternalTrackerSpec spec, const ExternalParams&
       prior_(prior) {
   params_.validate();
   if (nodes_ < 1) throw std::invalid_argument("external tracker: nodes must be >= 1");
-  const std::string who = "external tracker '" + spec_.name + "' (" + spec_.command + "): ";
+  const std::string who = "external tracker '" + io::echo(spec_.name) + "' (" +
+                          io::echo(spec_.command, kCommandBytes) + "): ";
   // Its stderr goes to a file (a pipe nobody drained could stall it), quoted on failure;
   // unlinked at once, so that nothing is left behind however linksight ends.
   const char* tmpdir = std::getenv("TMPDIR");
@@ -276,15 +279,16 @@ void ExternalTracker::fail(int frame, const std::string& what, double wait_s) {
   }
   const std::string tail = stderr_tail();
   stop();
-  throw ExternalTrackerError("external tracker '" + spec_.name + "' (" + spec_.command +
-                             "): frame " + std::to_string(frame) + ": " + how + tail);
+  throw ExternalTrackerError("external tracker '" + io::echo(spec_.name) + "' (" +
+                             io::echo(spec_.command, kCommandBytes) + "): frame " +
+                             std::to_string(frame) + ": " + how + tail);
 }
 
 bool ExternalTracker::wait_for(int fd, short events, double deadline, int frame) {
   for (;;) {
     if (cancel_ != nullptr && cancel_->load()) {
       stop();
-      throw ExternalTrackerInterrupted("external tracker '" + spec_.name + "': frame " +
+      throw ExternalTrackerInterrupted("external tracker '" + io::echo(spec_.name) + "': frame " +
                                        std::to_string(frame) + ": interrupted");
     }
     const int left = ms_left(deadline);

@@ -167,13 +167,15 @@ void SweepSpec::validate() const {
   for (const SweepAxis& a : axes) {
     if (a.key.empty()) throw std::invalid_argument("sweep: an axis without a key");
     if (a.key == "cell" || a.key == "mode" || a.key == "cell_seed")
-      throw std::invalid_argument("sweep: axis '" + a.key + "' clashes with a column name");
+      throw std::invalid_argument("sweep: axis '" + io::echo(a.key) +
+                                  "' clashes with a column name");
     if (!keys.insert(a.key).second)
-      throw std::invalid_argument("sweep: axis '" + a.key + "' given twice");
-    if (a.values.empty()) throw std::invalid_argument("sweep: axis '" + a.key + "' has no values");
+      throw std::invalid_argument("sweep: axis '" + io::echo(a.key) + "' given twice");
+    if (a.values.empty())
+      throw std::invalid_argument("sweep: axis '" + io::echo(a.key) + "' has no values");
     for (const std::string& v : a.values)
       if (v.find_first_of("\",\n\r") != std::string::npos || v.empty())
-        throw std::invalid_argument("sweep: axis '" + a.key + "' value '" + v +
+        throw std::invalid_argument("sweep: axis '" + io::echo(a.key) + "' value '" + io::echo(v) +
                                     "': empty, or holds a quote, comma or line break");
     scene_axis = scene_axis || a.key == "scene";
   }
@@ -189,7 +191,7 @@ void SweepSpec::validate() const {
   for (const TrackerMode m : modes) names.emplace(to_string(m));
   for (const ExternalTrackerSpec& e : external)
     if (e.name.empty() || !names.insert(e.name).second)
-      throw std::invalid_argument("sweep: tracker '" + e.name + "' given twice");
+      throw std::invalid_argument("sweep: tracker '" + io::echo(e.name) + "' given twice");
   if (frames < 0)
     throw std::invalid_argument("sweep: frames = " + std::to_string(frames) + ": must be >= 0");
   double n = 1;
@@ -414,7 +416,7 @@ std::string sweep_digest(const SweepSpec& spec) {
     if (a.key == "scene")
       for (const std::string& v : a.values) scenes.emplace_back(v);
   for (const fs::path& p : scenes) {
-    // Only a regular file is read: a FIFO would block here (load_scene refuses it later).
+    // Only a regular file is read: a FIFO would block here (yaml::load_file refuses it).
     std::error_code ec;
     std::ifstream in;
     if (fs::is_regular_file(p, ec)) in.open(p, std::ios::binary);
@@ -547,9 +549,13 @@ void write_shard_file(const fs::path& dir, const SweepSpec& spec, int shard, int
     std::error_code ec;
     fs::remove(failed_file(file), ec);
   } else {
+    // The sweep's digest on each row, as in the shard file: a shard whose cells all
+    // failed has no other row to tell whose it is.
+    const std::string digest = sweep_digest(spec);
     io::write_file_atomic(failed_file(file), [&](std::ostream& os) {
-      os << "cell,error\n";
-      for (const SweepFailure& f : failures) os << f.cell << ',' << one_field(f.error) << '\n';
+      os << "cell,error," << kDigestColumn << "\n";
+      for (const SweepFailure& f : failures)
+        os << f.cell << ',' << one_field(f.error) << ',' << digest << '\n';
     });
   }
   io::write_file_atomic(file, [&](std::ostream& os) {
@@ -684,6 +690,14 @@ ShardLock::ShardLock(const fs::path& dir, int shard, int count) {
   lock.l_type = F_WRLCK;
   lock.l_whence = SEEK_SET;
   if (::fcntl(fd_, F_SETLK, &lock) != 0) {
+    // EACCES or EAGAIN: another process holds it; anything else (ENOLCK: an NFS mount
+    // without its lock daemon) is said as it is.
+    if (errno != EACCES && errno != EAGAIN) {
+      const std::string why = std::strerror(errno);
+      ::close(fd_);
+      fd_ = -1;
+      throw io::InputError(path.string() + ": cannot lock: " + why);
+    }
     struct flock held {};
     held.l_type = F_WRLCK;
     held.l_whence = SEEK_SET;
@@ -760,6 +774,7 @@ MergeResult merge_sweep(const fs::path& dir) {
   std::vector<std::vector<std::vector<std::string>>> by_cell(spec.cells());
   MergeResult result;
   std::vector<fs::path> files;
+  std::size_t rows_read = 0;
   for (const auto& entry : fs::directory_iterator(dir))
     if (is_shard_file_name(entry.path().filename().string())) files.push_back(entry.path());
   std::sort(files.begin(), files.end());
@@ -775,18 +790,32 @@ MergeResult merge_sweep(const fs::path& dir) {
       row.pop_back();  // the digest: not in the merged tables
     }
     ++result.shard_files;
+    // All the shard files together hold the grid's rows once; doubled shards are named
+    // below, but copies without end are refused here, before they are all held.
+    rows_read += f.rows.size();
+    if (rows_read > io::rows_with_room(spec.cells() * per_cell))
+      throw io::InputError("sweep merge " + dir.string() + ": the shard files up to " +
+                           path.filename().string() + " hold " + std::to_string(rows_read) +
+                           " rows, where the grid has " + std::to_string(spec.cells() * per_cell) +
+                           " (shards copied in more than once?)");
     if (fs::exists(failed_file(path))) {
-      io::CsvLimits failed_limits;  // a row per failed cell: cell,error
+      io::CsvLimits failed_limits;  // a row per failed cell: cell,error,sweep_digest
       failed_limits.max_rows = spec.cells();
-      failed_limits.max_columns = 2;
+      failed_limits.max_columns = 3;
       const io::CsvTable failed = io::read_csv(failed_file(path), failed_limits);
-      if (failed.header != std::vector<std::string>{"cell", "error"})
-        throw io::InputError(failed_file(path).string() + ":1: expected the columns cell,error");
-      for (const auto& row : failed.rows) {
+      if (failed.header != std::vector<std::string>{"cell", "error", kDigestColumn})
+        throw io::InputError(failed_file(path).string() + ":1: expected the columns cell,error," +
+                             kDigestColumn);
+      for (std::size_t i = 0; i < failed.rows.size(); ++i) {
+        const std::vector<std::string>& row = failed.rows[i];
+        const std::string at = failed_file(path).string() + ":" + std::to_string(failed.lines[i]);
         const std::size_t cell = parse_index(row[0], failed_file(path));
         if (cell >= spec.cells())
-          throw io::InputError(failed_file(path).string() + ": cell " + io::echo(row[0]) +
-                               " is beyond the grid's " + std::to_string(spec.cells()) + " cells");
+          throw io::InputError(at + ": cell " + io::echo(row[0]) + " is beyond the grid's " +
+                               std::to_string(spec.cells()) + " cells");
+        if (row[2] != digest)
+          throw io::InputError(at + ": its sweep digest is '" + io::echo(row[2]) +
+                               "', this sweep's is '" + digest + "' (a shard of another sweep)");
         result.failed.push_back({cell, row[1]});
       }
     }

@@ -11,6 +11,9 @@ YAML::Node load_file(const std::filesystem::path& path, const std::string& what)
   // yaml-cpp holds about 110 bytes per byte of input: a file past the limit is refused
   // before it is parsed, not after gigabytes (issue 19, F5).
   std::error_code ec;
+  // A FIFO would block the read, a device never end: only a regular file is read.
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw io::InputError(file + ": not a regular file (a " + what + " must be one)");
   const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
   if (!ec && bytes > kMaxFileBytes)
     throw io::InputError(file + ": " + std::to_string(bytes) + " bytes, more than a " + what +

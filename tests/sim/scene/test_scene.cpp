@@ -1,6 +1,7 @@
 // Scene files: the shipped physics scenes do what their comments say; bad files name
 // the file, the line and the key.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <fstream>
 #include <limits>
@@ -76,6 +77,16 @@ class BadScene : public ::testing::Test {
     return "no error";
   }
 };
+
+// A scene or grid path that names a FIFO (which would block the read) or a device (which
+// never ends) is refused before a byte is read.
+TEST_F(BadScene, AFifoOrDeviceIsRefusedBeforeReading) {
+  ASSERT_EQ(::mkfifo((dir / "fifo.yaml").c_str(), 0600), 0);
+  for (const std::filesystem::path& p : {dir / "fifo.yaml", std::filesystem::path("/dev/zero")}) {
+    const std::string e = test::error_of([&] { (void)load_scene(p); });
+    EXPECT_EQ(e, p.string() + ": not a regular file (a scene must be one)");
+  }
+}
 
 TEST_F(BadScene, ErrorsNameLineAndKey) {
   EXPECT_NE(

@@ -266,6 +266,20 @@ TEST_F(Sweep, MergeNamesMissingAndDoubledCells) {
             std::string::npos);
 }
 
+// Shard files copied in again and again are refused once they hold more rows than the
+// grid twice over, before all are held; a few doubled shards are named by their cells.
+TEST_F(Sweep, MergeRefusesShardsCopiedWithoutEnd) {
+  const SweepSpec spec = tiny();  // 6 cells x 2 modes: 12 rows
+  run_shard(dir, spec, 0, 1);
+  for (int k = 0; k < 8; ++k)
+    fs::copy_file(dir / shard_file_name(0, 1), dir / shard_file_name(k, 99));
+  const std::string e = test::error_of([&] { (void)merge_sweep(dir); });
+  EXPECT_NE(e.find("hold 96 rows, where the grid has 12 (shards copied in more than once?)"),
+            std::string::npos)
+      << e;
+  EXPECT_FALSE(fs::exists(dir / "cells.csv"));
+}
+
 TEST_F(Sweep, CompleteShardsAreRecognizedAndOthersAreNot) {
   const SweepSpec spec = tiny();
   EXPECT_FALSE(shard_complete(dir, spec, 0, 2));
@@ -353,6 +367,29 @@ TEST_F(Sweep, MergeRefusesAShardOfAnotherSweep) {
   SweepSpec scene = spec;
   scene.scene = copy;
   foreign(scene, 2, "its sweep digest is '" + sweep_digest(scene) + "'");
+  // A row of this sweep's own shard, edited to name a tracker it does not compare: the
+  // digest matches, the tracker check names it.
+  run_shard(dir / "mine", spec, 1, 2);
+  const fs::path own = dir / "mine" / shard_file_name(1, 2);
+  const std::string good = slurp(own);
+  std::string edited = good;
+  edited.replace(edited.find(",paper,"), 7, ",accelerated-som,");
+  std::ofstream(own) << edited;
+  EXPECT_NE(test::error_of([&] {
+              (void)merge_sweep(dir / "mine");
+            }).find(own.string() + ":2: tracker 'accelerated-som' is not one this sweep compares"),
+            std::string::npos);
+  // A shard whose cells all failed has rows only in its .failed.csv: they carry the
+  // digest too, so another sweep's failures are refused as well.
+  std::ofstream(own) << good.substr(0, good.find('\n') + 1);
+  std::ofstream(dir / "mine" / "shard_1_of_2.failed.csv")
+      << "cell,error,sweep_digest\n1,boom,0123456789abcdef\n";
+  EXPECT_NE(test::error_of([&] { (void)merge_sweep(dir / "mine"); })
+                .find("shard_1_of_2.failed.csv:2: its sweep digest is '0123456789abcdef', this "
+                      "sweep's is '" +
+                      sweep_digest(spec) + "' (a shard of another sweep)"),
+            std::string::npos);
+  fs::remove(dir / "mine" / "shard_1_of_2.failed.csv");
   // The sweep's own shard merges.
   run_shard(dir / "mine", spec, 1, 2);
   EXPECT_TRUE(shard_complete(dir / "mine", spec, 1, 2));

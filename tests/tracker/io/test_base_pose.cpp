@@ -38,9 +38,8 @@ TEST(BasePose, WrittenPosesReadBack) {
     EXPECT_LT((back[f].translation() - poses[f].translation()).norm(), 1e-9);
     EXPECT_LT((back[f].linear() - poses[f].linear()).norm(), 1e-8);
   }
-  // Errors name the line: frame 2's row is line 2. (Two rows: a third would be more rows
-  // than 2 frames can have, refused while reading.)
-  std::ofstream(dir / "short.csv") << text.substr(0, text.rfind('\n', text.size() - 2) + 1);
+  // Errors name the line: frame 2's row is line 2.
+  std::ofstream(dir / "short.csv") << text;
   try {
     (void)read_base_poses(dir / "short.csv", 2);
     ADD_FAILURE() << "frame 2 of 2 frames was accepted";

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <iterator>
 
@@ -106,6 +107,43 @@ TEST_F(DepthPng, AnEmptyFirstIdatIsRefusedBeforeDecoding) {
                 ": not a readable PNG (its first IDAT chunk, at byte 33, is empty)");
   write_with_empty_idat_at("after.png", bytes.size() - 12);  // before IEND
   EXPECT_EQ(read_depth_png(dir / "after.png").data, (std::vector<std::uint16_t>{0x1234, 0xABCD}));
+}
+
+// Image data that inflates to more than its header's pixels hold is refused before stb
+// sees it: stb_image grew its buffer for as long as the stream went on (a 1x1 header over
+// 10 KB of compressed zeros inflating to 10 MB, or over a few MB to gigabytes).
+TEST_F(DepthPng, ImageDataLongerThanItsPixelsIsRefusedBeforeDecoding) {
+  // A stored (uncompressed) deflate stream of `raw` bytes, as write_depth_png writes.
+  const auto png_of = [&](const char* name, std::uint32_t w, std::uint32_t h, std::size_t raw) {
+    std::vector<unsigned char> data(raw, 0);
+    std::vector<unsigned char> z = {0x78, 0x01};
+    for (std::size_t pos = 0; pos < raw;) {
+      const std::size_t len = std::min<std::size_t>(65535, raw - pos);
+      z.insert(z.end(), {static_cast<unsigned char>(pos + len == raw),
+                         static_cast<unsigned char>(len), static_cast<unsigned char>(len >> 8),
+                         static_cast<unsigned char>(~len), static_cast<unsigned char>(~len >> 8)});
+      z.insert(z.end(), data.begin(), data.begin() + static_cast<std::ptrdiff_t>(len));
+      pos += len;
+    }
+    for (int k = 0; k < 4; ++k) z.push_back(k == 3 ? 1 : 0);  // Adler-32 is not checked
+    std::string png("\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR", 16);
+    for (const std::uint32_t v : {w, h})
+      for (int sh = 24; sh >= 0; sh -= 8) png.push_back(static_cast<char>((v >> sh) & 0xFF));
+    png += std::string("\x10\0\0\0\0\0\0\0\0", 9);
+    for (int sh = 24; sh >= 0; sh -= 8) png.push_back(static_cast<char>((z.size() >> sh) & 0xFF));
+    png += "IDAT";
+    png.append(reinterpret_cast<const char*>(z.data()), z.size());
+    png += std::string(4, '\0') + std::string("\0\0\0\0IEND\xae\x42\x60\x82", 12);
+    std::ofstream(dir / name, std::ios::binary) << png;
+    return dir / name;
+  };
+  // 1x1 at 16 bits is 3 bytes: a filter byte and one sample.
+  EXPECT_EQ(read_depth_png(png_of("exact.png", 1, 1, 3)).data, std::vector<std::uint16_t>{0});
+  const std::filesystem::path bomb = png_of("bomb.png", 1, 1, 1 << 20);
+  EXPECT_EQ(test::error_of([&] { (void)read_depth_png(bomb); }),
+            bomb.string() +
+                ": not a readable PNG (its image data does not inflate to the 3 bytes "
+                "of its 1x1 pixels: corrupt, or longer than they hold)");
 }
 
 // The size cap is read from the header before anything is decoded: twice the SR300's

@@ -32,6 +32,7 @@ TEST(Echo, ControlAndNonUtf8BytesAreEscaped) {
   EXPECT_EQ(escape_controls("\xC2\x9B\x32J"), "\\u{009B}2J");
   EXPECT_EQ(escape_controls("a\xE2\x80\xAE\x62"), "a\\u{202E}b");
   EXPECT_EQ(escape_controls("a\xE2\x80\x8B\x62"), "a\\u{200B}b");
+  EXPECT_EQ(escape_controls("a\xE2\x80\xA8\x62"), "a\\u{2028}b");  // a line separator
 }
 
 TEST(Echo, LongTextIsCutAtACharacterWithItsSize) {

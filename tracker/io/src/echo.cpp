@@ -35,11 +35,13 @@ std::size_t utf8_at(std::string_view s, std::size_t i, std::uint32_t& cp) {
   return n;
 }
 
-// C1 controls, and the characters that reorder or hide what a terminal shows (bidi
-// embeddings, overrides and isolates, zero-width marks, the BOM).
+// C1 controls, and the characters that break, reorder or hide what a terminal shows: the
+// soft hyphen, the Arabic letter mark, zero-width marks, the line and paragraph
+// separators, bidi embeddings, overrides and isolates, word joiners, the BOM.
 bool is_hidden(std::uint32_t cp) {
-  return (cp >= 0x80 && cp <= 0x9F) || (cp >= 0x200B && cp <= 0x200F) ||
-         (cp >= 0x202A && cp <= 0x202E) || (cp >= 0x2060 && cp <= 0x2069) || cp == 0xFEFF;
+  return (cp >= 0x80 && cp <= 0x9F) || cp == 0xAD || cp == 0x61C ||
+         (cp >= 0x200B && cp <= 0x200F) || (cp >= 0x2028 && cp <= 0x202E) ||
+         (cp >= 0x2060 && cp <= 0x2069) || cp == 0xFEFF;
 }
 
 void append_hex(std::string& out, const char* format, unsigned value) {

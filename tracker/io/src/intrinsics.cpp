@@ -70,7 +70,7 @@ Distortion parse_distortion(std::string_view name) {
 
 namespace {
 // The focal length [px] of a 1-degree field of view across the widest image a camera may
-// deliver: kMaxDepthPngSide / (2 tan(0.5 degree)) = 234,659 px, rounded up.
+// deliver: kMaxDepthPngSide / (2 tan(0.5 degree)) = 234,678 px, rounded up.
 constexpr double kMaxFocalPx = 2.35e5;
 static_assert(kMaxDepthPngSide == 4096, "kMaxFocalPx follows from the widest image");
 }  // namespace

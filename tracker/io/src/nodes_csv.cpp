@@ -35,11 +35,13 @@ std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& pa
                                                  std::size_t frames, std::size_t nodes,
                                                  std::size_t max_rows) {
   const std::string file = path.string();
-  // Each (frame, node) once at most, so a table of known size holds frames x nodes rows.
+  // Each (frame, node) once at most, so a table of known size holds frames x nodes rows;
+  // kMaxCsvRows caps it whatever a recording's own files claim.
   CsvLimits limits;
-  limits.max_rows = max_rows != 0               ? rows_with_room(max_rows)
-                    : frames != 0 && nodes != 0 ? rows_with_room(frames * nodes)
-                                                : kMaxCsvRows;
+  limits.max_rows = std::min(max_rows != 0               ? rows_with_room(max_rows)
+                             : frames != 0 && nodes != 0 ? rows_with_room(frames * nodes)
+                                                         : kMaxCsvRows,
+                             kMaxCsvRows);
   const CsvTable t = read_csv(path, limits);
   std::array<std::size_t, kColumns.size()> at{};
   std::array<bool, kColumns.size()> found{};

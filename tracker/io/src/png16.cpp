@@ -51,6 +51,25 @@ void chunk(std::ostream& out, const char* type, const std::vector<unsigned char>
   out.write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
 }
 
+// The bytes a PNG's image data inflates to: per row a filter byte and its samples, per
+// Adam7 pass when interlaced (PNG specification, 7.2 and 8.2).
+std::uint64_t inflated_bytes(std::uint64_t w, std::uint64_t h, int bit_depth, int colour,
+                             bool adam7) {
+  const std::uint64_t channels = colour == 2 ? 3 : colour == 4 ? 2 : colour == 6 ? 4 : 1;
+  const std::uint64_t bits = static_cast<std::uint64_t>(bit_depth) * channels;
+  const auto image = [&](std::uint64_t cw, std::uint64_t ch) {
+    return cw == 0 || ch == 0 ? 0 : ch * (1 + (cw * bits + 7) / 8);
+  };
+  if (!adam7) return image(w, h);
+  static constexpr std::uint64_t x0[7] = {0, 4, 0, 2, 0, 1, 0}, y0[7] = {0, 0, 4, 0, 2, 0, 1},
+                                 dx[7] = {8, 8, 4, 4, 2, 2, 1}, dy[7] = {8, 8, 8, 4, 4, 2, 2};
+  std::uint64_t n = 0;
+  for (int p = 0; p < 7; ++p)
+    n += image(w > x0[p] ? (w - x0[p] + dx[p] - 1) / dx[p] : 0,
+               h > y0[p] ? (h - y0[p] + dy[p] - 1) / dy[p] : 0);
+  return n;
+}
+
 }  // namespace
 
 void write_depth_png(const std::filesystem::path& path, const DepthImage& image) {
@@ -146,11 +165,14 @@ std::vector<char> read_png_checked(const std::filesystem::path& path) {
   std::vector<char> bytes(static_cast<std::size_t>(file_bytes));
   in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   bytes.resize(static_cast<std::size_t>(in.gcount()));
+  // The signature and a whole IHDR chunk (13 bytes of data and a CRC), read below.
+  if (bytes.size() < 33) throw InputError(file + ": not a readable PNG (its header is cut short)");
   // Every chunk must fit in the file: stb_image sizes its buffer by an IDAT chunk's declared
   // length before reading it, so a 117-byte file declaring 1.2 GB took 2 GiB (found by
   // fuzz_depth_png). And the first IDAT must hold data: stb_image copies a first empty one
   // into a buffer it has not allocated yet (memcpy to NULL, undefined behaviour).
   bool idat_seen = false;
+  std::string idat;  // the image data, concatenated
   for (std::size_t at = 8; at + 8 <= bytes.size();) {
     const auto* c = reinterpret_cast<const unsigned char*>(bytes.data() + at);
     const auto length = static_cast<std::uint64_t>(be32(c));
@@ -164,8 +186,26 @@ std::vector<char> read_png_checked(const std::filesystem::path& path) {
         throw InputError(file + ": not a readable PNG (its first IDAT chunk, at byte " +
                          std::to_string(at) + ", is empty)");
       idat_seen = true;
+      idat.append(bytes.data() + at + 8, static_cast<std::size_t>(length));
     }
     at += 12 + static_cast<std::size_t>(length);
+  }
+  // The image data must inflate to what the header's pixels hold, no more: stb_image
+  // grows its buffer for as long as the stream goes on, so a 1x1 header over a few MB of
+  // compressed zeros took gigabytes (deflate packs about 1000 bytes into one). Inflated
+  // here into a buffer of exactly that size, which zlib may not overrun.
+  const auto* h = reinterpret_cast<const unsigned char*>(bytes.data());
+  const std::uint64_t raw =
+      inflated_bytes(static_cast<std::uint64_t>(size.width),
+                     static_cast<std::uint64_t>(size.height), h[24], h[25], h[28] == 1);
+  if (idat_seen) {
+    std::vector<char> out(static_cast<std::size_t>(raw) + 1);
+    const int got = stbi_zlib_decode_buffer(out.data(), static_cast<int>(out.size()), idat.data(),
+                                            static_cast<int>(idat.size()));
+    if (got < 0 || static_cast<std::uint64_t>(got) > raw)
+      throw InputError(file + ": not a readable PNG (its image data does not inflate to the " +
+                       std::to_string(raw) + " bytes of its " + std::to_string(size.width) + "x" +
+                       std::to_string(size.height) + " pixels: corrupt, or longer than they hold)");
   }
   return bytes;
 }

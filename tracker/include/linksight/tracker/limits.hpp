@@ -34,9 +34,9 @@ inline constexpr long long kMaxPlyLine = 1LL << 16;
 /// at 30 fps), nor a node index above kMaxCsvNode (a chain has at most 100 components).
 inline constexpr std::size_t kMaxCsvFrame = 1'000'000;
 inline constexpr std::size_t kMaxCsvNode = 1'000;
-/// nodes.csv read without knowing its size: at most this many rows, 4.2 M (an hour at
-/// 30 fps of an 11-ball chain is 1.3 M), about 1 GB held while checking. `score` bounds
-/// the truth's rows by its camera.json and chain.json instead, an estimate's by the truth.
+/// The most rows a nodes.csv (an estimate, a truth) may have, 4.2 M, about 1 GB held while
+/// checking: an hour at 60 fps of an 11-ball chain is 2.6 M. Within it, `score` bounds an
+/// estimate by the truth's frames x nodes, and the truth by its camera.json and chain.json.
 inline constexpr std::size_t kMaxCsvRows = std::size_t{1} << 22;
 }  // namespace io
 

@@ -72,10 +72,11 @@ struct SweepCell {
 /// overrides, and its seed. For callers that run the episode themselves.
 [[nodiscard]] Scene sweep_cell_scene(const SweepSpec& spec, std::size_t index);
 
-/// A digest (16 hex digits) of everything that determines a sweep's cells: the scene
-/// path, axes, --set overrides, compared modes and trackers, frames, and the bytes of every
-/// scene file a cell loads. The manifest records it when the sweep begins, every shard row
-/// and cell record carries it, and a file whose digest differs is another sweep's.
+/// A digest (16 hex digits) of what determines a sweep's cells: the scene path, axes,
+/// --set overrides, compared modes and trackers, frames, and the bytes of every scene file
+/// a cell loads (not of the mesh files a scene names: a mesh changed mid-sweep is not
+/// seen). The manifest records it when the sweep begins, every shard row, cell record and
+/// .failed.csv row carries it, and a file whose digest differs is another sweep's.
 [[nodiscard]] std::string sweep_digest(const SweepSpec& spec);
 
 /// The deterministic columns: cell, mode, one per axis, seed, then the metrics (lengths

@@ -33,8 +33,9 @@ struct PngSize {
 /// The bytes of the PNG file `path`, checked before a decoder sees them: a regular file,
 /// at most kMaxDepthPngSide a side and kMaxDepthPngPixels in all (from the header), at
 /// most 4 bytes a pixel of that in the file, every chunk within the file, the first IDAT
-/// chunk not empty. Throws InputError naming the file and the check. Every PNG reader
-/// (depth, labels) decodes only what this returns.
+/// chunk not empty, and the image data inflating to no more than the header's pixels hold. Throws
+/// InputError naming the file and the check. Every PNG reader (depth, labels) decodes only what
+/// this returns.
 [[nodiscard]] std::vector<char> read_png_checked(const std::filesystem::path& path);
 
 /// Reads a single-channel 16-bit PNG. Throws InputError naming the file when it is not

@@ -18,8 +18,10 @@ inline constexpr std::size_t kMaxMessage = 2048;
 
 /// `text` escaped: `\n`, `\r`, `\t`, `\xHH` for any other byte below 0x20, DEL and any
 /// byte that is not part of well-formed UTF-8; `\u{XXXX}` for C1 controls and the
-/// bidirectional and zero-width format characters. Characters that are printable UTF-8
-/// pass unchanged.
+/// format characters that break, reorder or hide text (line and paragraph separators,
+/// bidirectional controls, zero-width marks). Printable UTF-8 passes unchanged, and so
+/// does a backslash: a literal "\x1B" in the input reads as an escaped ESC would (the
+/// price of an idempotent escape).
 [[nodiscard]] std::string escape_controls(std::string_view text);
 
 /// An input text for a message: escape_controls of its first `max_bytes` bytes (cut at a

@@ -20,8 +20,8 @@ namespace linksight::io {
 /// truth's"); a (frame, node) given twice; a coordinate that is not a finite number; a
 /// frame with some of its nodes but not all (the line of its first row); more rows than
 /// the table can hold, checked while reading: rows_with_room of `max_rows` when given,
-/// else of frames x nodes when both are given, else kMaxCsvRows (limits.hpp); and
-/// read_csv's refusals.
+/// else of frames x nodes when both are given, and never more than kMaxCsvRows
+/// (limits.hpp); and read_csv's refusals.
 [[nodiscard]] std::vector<std::optional<Nodes>> read_nodes_csv(const std::filesystem::path& path,
                                                                std::size_t frames = 0,
                                                                std::size_t nodes = 0,
